@@ -1,0 +1,102 @@
+"""Batch drivers: one plain loop over pairs, compiled serial and parallel.
+
+The loop body is written once (:func:`_collide_loop`) and compiled twice, as
+umap does: with ``parallel=False`` ``prange`` is an ordinary range. Every
+iteration reads its pair's shapes and poses (a batch of one broadcasts by
+index, no copies) and writes only its own output slots.
+"""
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from ._projection import pair_test
+
+
+def _collide_loop(avx, avy, aeang, avang, ainv, aoff, arad, acen,
+                  bvx, bvy, beang, bvang, binv, boff, brad, bcen,
+                  pos_a, rot_a, pos_b, rot_b, rtol, atol, want_contact,
+                  hit_out, case_out, contact_out):
+    n = hit_out.shape[0]
+    npa = pos_a.shape[0]
+    nra = rot_a.shape[0]
+    npb = pos_b.shape[0]
+    nrb = rot_b.shape[0]
+    nsa = arad.shape[0]
+    nsb = brad.shape[0]
+    for ip in prange(n):
+        # prange's index is unsigned; mixing it with int64 would give floats.
+        i = np.int64(ip)
+        # A batch of one broadcasts: min() picks row 0 (sizes are 1 or n).
+        ka = min(i, nsa - 1)
+        kb = min(i, nsb - 1)
+        Ra = rot_a[min(i, nra - 1)]
+        Rb = rot_b[min(i, nrb - 1)]
+        Pa = pos_a[min(i, npa - 1)]
+        Pb = pos_b[min(i, npb - 1)]
+        # End-face centres in world coordinates (the user's origin need not
+        # lie inside the polygon).
+        cax = acen[ka, 0]
+        cay = acen[ka, 1]
+        cbx = bcen[kb, 0]
+        cby = bcen[kb, 1]
+        ox = Pa[0] + Ra[0, 0] * cax + Ra[0, 1] * cay
+        oy = Pa[1] + Ra[1, 0] * cax + Ra[1, 1] * cay
+        oz = Pa[2] + Ra[2, 0] * cax + Ra[2, 1] * cay
+        dx = Pb[0] + Rb[0, 0] * cbx + Rb[0, 1] * cby - ox
+        dy = Pb[1] + Rb[1, 0] * cbx + Rb[1, 1] * cby - oy
+        dz = Pb[2] + Rb[2, 0] * cbx + Rb[2, 1] * cby - oz
+        # b's pose in a's centred frame: p = Ra^T d, R = Ra^T Rb.
+        px = Ra[0, 0] * dx + Ra[1, 0] * dy + Ra[2, 0] * dz
+        py = Ra[0, 1] * dx + Ra[1, 1] * dy + Ra[2, 1] * dz
+        pz = Ra[0, 2] * dx + Ra[1, 2] * dy + Ra[2, 2] * dz
+        r00 = Ra[0, 0] * Rb[0, 0] + Ra[1, 0] * Rb[1, 0] + Ra[2, 0] * Rb[2, 0]
+        r01 = Ra[0, 0] * Rb[0, 1] + Ra[1, 0] * Rb[1, 1] + Ra[2, 0] * Rb[2, 1]
+        r02 = Ra[0, 0] * Rb[0, 2] + Ra[1, 0] * Rb[1, 2] + Ra[2, 0] * Rb[2, 2]
+        r10 = Ra[0, 1] * Rb[0, 0] + Ra[1, 1] * Rb[1, 0] + Ra[2, 1] * Rb[2, 0]
+        r11 = Ra[0, 1] * Rb[0, 1] + Ra[1, 1] * Rb[1, 1] + Ra[2, 1] * Rb[2, 1]
+        r12 = Ra[0, 1] * Rb[0, 2] + Ra[1, 1] * Rb[1, 2] + Ra[2, 1] * Rb[2, 2]
+        r20 = Ra[0, 2] * Rb[0, 0] + Ra[1, 2] * Rb[1, 0] + Ra[2, 2] * Rb[2, 0]
+        r21 = Ra[0, 2] * Rb[0, 1] + Ra[1, 2] * Rb[1, 1] + Ra[2, 2] * Rb[2, 1]
+        r22 = Ra[0, 2] * Rb[0, 2] + Ra[1, 2] * Rb[1, 2] + Ra[2, 2] * Rb[2, 2]
+        ra = arad[ka]
+        rb = brad[kb]
+        # Scale-aware tolerance: rounding grows with the coordinates involved.
+        tol = atol + rtol * (ra + rb + math.sqrt(px * px + py * py + pz * pz))
+        sa = aoff[ka]
+        na = aoff[ka + 1] - sa
+        sb = boff[kb]
+        nb = boff[kb + 1] - sb
+        hit, case, cx, cy, cz = pair_test(
+            avx, avy, aeang, avang, ainv, sa, na, ra,
+            bvx, bvy, beang, sb, nb, rb,
+            px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22, tol)
+        hit_out[i] = hit
+        case_out[i] = case
+        if want_contact:
+            if hit:
+                contact_out[i, 0] = ox + Ra[0, 0] * cx + Ra[0, 1] * cy + Ra[0, 2] * cz
+                contact_out[i, 1] = oy + Ra[1, 0] * cx + Ra[1, 1] * cy + Ra[1, 2] * cz
+                contact_out[i, 2] = oz + Ra[2, 0] * cx + Ra[2, 1] * cy + Ra[2, 2] * cz
+            else:
+                contact_out[i, 0] = math.nan
+                contact_out[i, 1] = math.nan
+                contact_out[i, 2] = math.nan
+
+
+collide_serial = njit(cache=True, parallel=False)(_collide_loop)
+collide_parallel = njit(cache=True, parallel=True)(_collide_loop)
+
+
+def run(a_arrays, b_arrays, pos_a, rot_a, pos_b, rot_b, n, rtol, atol,
+        want_contact, parallel):
+    """Allocate outputs and call the serial or parallel kernel."""
+    hit = np.empty(n, dtype=np.bool_)
+    case = np.empty(n, dtype=np.int8)
+    # A status-only call gets a (0, 3) placeholder: no memory, no writes.
+    contact = np.empty((n if want_contact else 0, 3), dtype=pos_a.dtype)
+    kern = collide_parallel if parallel else collide_serial
+    kern(*a_arrays, *b_arrays, pos_a, rot_a, pos_b, rot_b,
+         rtol, atol, want_contact, hit, case, contact)
+    return hit, case, contact

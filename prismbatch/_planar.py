@@ -1,0 +1,339 @@
+"""Planar kernels: convex-polygon queries in O(log n) and a 2-D GJK.
+
+Every polygon is a slice ``[s, s + n)`` of flat structure-of-arrays storage
+(see :class:`prismbatch.shapes.PrismSet`): vertices about an interior centre,
+counter-clockwise, with unwrapped edge angles and polar angles.
+
+The shape "B" that GJK tests against polygon A is always described by one
+*spec* tuple (see :func:`support_spec`): the affine image
+
+    B = { P + M q + t w : q in polygon_B, 0 <= t <= T, z(q, t) >= -tolz },
+    z(q, t) = pz + h.q + c t,
+
+which covers every planar shape the paper uses (point, segment, half-line,
+unbounded strip, polygon, with ``M = I`` and no height constraint) and the
+projection of prism b onto prism a's end plane (section IV of the paper).
+"""
+
+import math
+
+from numba import njit
+
+TWO_PI = 2.0 * math.pi
+HALF_PI = 0.5 * math.pi
+
+# Spec tuple layout (all float64). Indices are named for readability.
+SP_PX, SP_PY = 0, 1
+SP_M00, SP_M01, SP_M10, SP_M11 = 2, 3, 4, 5
+SP_WX, SP_WY = 6, 7
+SP_HX, SP_HY = 8, 9
+SP_PZ, SP_C, SP_T, SP_TOLZ = 10, 11, 12, 13
+SP_IMIN, SP_IMAX = 14, 15
+
+GJK_MAX_ITER = 160
+
+
+@njit(cache=True, inline="always")
+def extreme_vertex(vx, vy, eang, s, n, dx, dy):
+    """Local index of a vertex maximising ``(dx, dy) . v`` (binary search).
+
+    Vertex k lies between edge k-1 and edge k; it is extreme for directions
+    whose angle + pi/2 lies in [eang[k-1], eang[k]].
+    """
+    if n == 1:
+        return 0
+    phi0 = eang[s]
+    target = phi0 + (math.atan2(dy, dx) + HALF_PI - phi0) % TWO_PI
+    lo = 0
+    hi = n
+    while lo < hi:
+        mid = (lo + hi) >> 1
+        if eang[s + mid] < target:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo % n
+
+
+@njit(cache=True, inline="always")
+def wedge_edge(vang, s, n, px, py):
+    """Edge k whose wedge (polar angles about the centre) holds point p (eq. 1)."""
+    th0 = vang[s]
+    target = th0 + (math.atan2(py, px) - th0) % TWO_PI
+    lo = 0
+    hi = n
+    while lo < hi:  # count of vertices with polar angle <= target
+        mid = (lo + hi) >> 1
+        if vang[s + mid] <= target:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo - 1 if lo > 0 else 0
+
+
+@njit(cache=True)
+def point_polygon_distance(vx, vy, vang, inv_len, s, n, px, py):
+    """Signed distance from p to the edge line of its wedge (paper eq. 1).
+
+    Positive inside the polygon. For a point outside it is a lower bound of
+    the Euclidean distance to the polygon (the polygon lies on one side of
+    every edge line), so ``>= 0`` is an exact inside test.
+    """
+    k = wedge_edge(vang, s, n, px, py)
+    k1 = k + 1 if k + 1 < n else 0
+    x0 = vx[s + k]
+    y0 = vy[s + k]
+    ex = vx[s + k1] - x0
+    ey = vy[s + k1] - y0
+    return (ex * (py - y0) - ey * (px - x0)) * inv_len[s + k]
+
+
+@njit(cache=True, inline="always")
+def _chain_cross(vx, vy, s, n, hx, hy, start, m, level, rising):
+    """Point where h.v crosses `level` on the monotone chain start..start+m."""
+    lo = 0
+    hi = m
+    while hi - lo > 1:
+        mid = (lo + hi) >> 1
+        j = (start + mid) % n
+        hv = hx * vx[s + j] + hy * vy[s + j]
+        if (hv <= level) == rising:
+            lo = mid
+        else:
+            hi = mid
+    i0 = (start + lo) % n
+    i1 = (start + hi) % n
+    h0 = hx * vx[s + i0] + hy * vy[s + i0]
+    h1 = hx * vx[s + i1] + hy * vy[s + i1]
+    den = h1 - h0
+    f = (level - h0) / den if den != 0.0 else 0.0
+    if f < 0.0:
+        f = 0.0
+    elif f > 1.0:
+        f = 1.0
+    return (vx[s + i0] + f * (vx[s + i1] - vx[s + i0]), vy[s + i0] + f * (vy[s + i1] - vy[s + i0]))
+
+
+@njit(cache=True)
+def chord(vx, vy, s, n, hx, hy, imin, imax, level):
+    """End points of the chord {q in polygon : h.q = level} in O(log n).
+
+    ``imin``/``imax`` are the vertices of least/greatest h.q. A level outside
+    that range (by rounding) is clamped to the extreme vertex.
+    """
+    hmin = hx * vx[s + imin] + hy * vy[s + imin]
+    hmax = hx * vx[s + imax] + hy * vy[s + imax]
+    if level <= hmin:
+        return vx[s + imin], vy[s + imin], vx[s + imin], vy[s + imin]
+    if level >= hmax:
+        return vx[s + imax], vy[s + imax], vx[s + imax], vy[s + imax]
+    m_up = (imax - imin) % n
+    m_dn = (imin - imax) % n
+    ux, uy = _chain_cross(vx, vy, s, n, hx, hy, imin, m_up, level, True)
+    dx, dy = _chain_cross(vx, vy, s, n, hx, hy, imax, m_dn, level, False)
+    return ux, uy, dx, dy
+
+
+SLAB_INSIDE, SLAB_LO, SLAB_HI = 0, 1, 2
+
+
+@njit(cache=True)
+def slab_support(vx, vy, eang, s, n, dx, dy, hx, hy, imin, imax, lo, hi):
+    """Maximise d.q over {q in polygon : lo <= h.q <= hi} (assumed non-empty).
+
+    If the unconstrained maximiser violates one side of the slab, the
+    constrained maximum lies on that side's chord (an LP fact), found by
+    binary search. Returns (u, v, flag) with flag SLAB_INSIDE/LO/HI.
+    """
+    k = extreme_vertex(vx, vy, eang, s, n, dx, dy)
+    u = vx[s + k]
+    v = vy[s + k]
+    hq = hx * u + hy * v
+    if hq > hi:
+        level = hi
+        flag = SLAB_HI
+    elif hq < lo:
+        level = lo
+        flag = SLAB_LO
+    else:
+        return u, v, SLAB_INSIDE
+    u1, v1, u2, v2 = chord(vx, vy, s, n, hx, hy, imin, imax, level)
+    if dx * u1 + dy * v1 >= dx * u2 + dy * v2:
+        return u1, v1, flag
+    return u2, v2, flag
+
+
+@njit(cache=True)
+def support_spec(vx, vy, eang, s, n, sp, dx, dy):
+    """Support point of the spec shape B in direction d.
+
+    Returns (x, y, u, v, t): the 2-D point and its pre-image (q = (u, v), t).
+    The maximisation is a 3-variable LP over (polygon x [0, T]) cut by the
+    half-space z(q, t) >= -tolz; it never divides by c unless the answer lies
+    strictly inside the slab, where the quotient is bounded by T.
+    """
+    au = sp[SP_M00] * dx + sp[SP_M10] * dy  # M^T d
+    av = sp[SP_M01] * dx + sp[SP_M11] * dy
+    g = sp[SP_WX] * dx + sp[SP_WY] * dy
+    T = sp[SP_T]
+    c = sp[SP_C]
+    pz = sp[SP_PZ]
+    tz = sp[SP_TOLZ]
+    hx = sp[SP_HX]
+    hy = sp[SP_HY]
+    imin = int(sp[SP_IMIN])
+    imax = int(sp[SP_IMAX])
+    tf = T if g > 0.0 else 0.0
+    if c == 0.0:
+        u, v, _ = slab_support(vx, vy, eang, s, n, au, av, hx, hy, imin, imax, -tz - pz, math.inf)
+        t = tf
+    else:
+        k = extreme_vertex(vx, vy, eang, s, n, au, av)
+        u = vx[s + k]
+        v = vy[s + k]
+        if pz + hx * u + hy * v + c * tf >= -tz:
+            t = tf
+        else:
+            # Optimum lies on the plane z = -tolz: substitute t(q) and scale
+            # the objective by |c| so nothing blows up as c -> 0.
+            ac = abs(c)
+            sg = 1.0 if c > 0.0 else -1.0
+            du = ac * au - sg * g * hx
+            dv = ac * av - sg * g * hy
+            h0 = -tz - pz  # h.q on the plane at t = 0
+            ht = h0 - c * T  # ... and at t = T
+            if h0 <= ht:
+                lo, hi, t_lo, t_hi = h0, ht, 0.0, T
+            else:
+                lo, hi, t_lo, t_hi = ht, h0, T, 0.0
+            u, v, flag = slab_support(vx, vy, eang, s, n, du, dv, hx, hy, imin, imax, lo, hi)
+            if flag == SLAB_LO:
+                t = t_lo
+            elif flag == SLAB_HI:
+                t = t_hi
+            else:
+                t = (h0 - (hx * u + hy * v)) / c
+                if t < 0.0:
+                    t = 0.0
+                elif t > T:
+                    t = T
+    x = sp[SP_PX] + sp[SP_M00] * u + sp[SP_M01] * v + sp[SP_WX] * t
+    y = sp[SP_PY] + sp[SP_M10] * u + sp[SP_M11] * v + sp[SP_WY] * t
+    return x, y, u, v, t
+
+
+@njit(cache=True, inline="always")
+def _seg_closest(p, q):
+    """Closest point to the origin on segment [p, q] of simplex entries.
+
+    Entries are tuples (wx, wy, ax, ay, u, v, t). Returns (vx, vy, lam) where
+    lam is the weight of q (0 -> p alone, 1 -> q alone).
+    """
+    ex = q[0] - p[0]
+    ey = q[1] - p[1]
+    ee = ex * ex + ey * ey
+    if ee <= 0.0:
+        return p[0], p[1], 0.0
+    lam = -(p[0] * ex + p[1] * ey) / ee
+    if lam <= 0.0:
+        return p[0], p[1], 0.0
+    if lam >= 1.0:
+        return q[0], q[1], 1.0
+    return p[0] + lam * ex, p[1] + lam * ey, lam
+
+
+@njit(cache=True, inline="always")
+def _mix(p, q, lam):
+    """(1 - lam) p + lam q, entry-wise."""
+    m = 1.0 - lam
+    return (m * p[0] + lam * q[0], m * p[1] + lam * q[1], m * p[2] + lam * q[2], m * p[3] + lam * q[3],
+            m * p[4] + lam * q[4], m * p[5] + lam * q[5], m * p[6] + lam * q[6])
+
+
+@njit(cache=True)
+def gjk(avx, avy, aeang, sa, na, bvx, bvy, beang, sb, nb, sp, tol):
+    """Is dist(polygon A, spec shape B) <= tol?  2-D GJK on O(log n) supports.
+
+    Returns (hit, iterations, ax, ay, u, v, t): on a hit, (ax, ay) is a point
+    of A and (u, v, t) the pre-image of a point of B within tol of it (their
+    weighted simplex combination). Replaces the walk of eqs. (15)-(18): it
+    needs no starting edge pair and ends in a bounded number of steps.
+    """
+    tol2 = tol * tol
+    dx = sp[SP_PX]
+    dy = sp[SP_PY]
+    if dx == 0.0 and dy == 0.0:
+        dx = 1.0
+    # Simplex entries: (wx, wy, ax, ay, u, v, t) with w = a - b.
+    ka = extreme_vertex(avx, avy, aeang, sa, na, dx, dy)
+    bx, by, bu, bv, bt = support_spec(bvx, bvy, beang, sb, nb, sp, -dx, -dy)
+    p0 = (avx[sa + ka] - bx, avy[sa + ka] - by, avx[sa + ka], avy[sa + ka], bu, bv, bt)
+    p1 = p0
+    p2 = p0
+    k = 1
+    vx_ = p0[0]
+    vy_ = p0[1]
+    wit = p0
+    last_vv = math.inf
+    for it in range(GJK_MAX_ITER):
+        vv = vx_ * vx_ + vy_ * vy_
+        if vv <= tol2:
+            return True, it, wit[2], wit[3], wit[4], wit[5], wit[6]
+        if vv >= last_vv:
+            return False, it, 0.0, 0.0, 0.0, 0.0, 0.0  # no progress: at rounding level, |v| > tol
+        last_vv = vv
+        ka = extreme_vertex(avx, avy, aeang, sa, na, -vx_, -vy_)
+        bx, by, bu, bv, bt = support_spec(bvx, bvy, beang, sb, nb, sp, vx_, vy_)
+        ax = avx[sa + ka]
+        ay = avy[sa + ka]
+        pn = (ax - bx, ay - by, ax, ay, bu, bv, bt)
+        vw = vx_ * pn[0] + vy_ * pn[1]
+        if vw > 0.0 and vw * vw > tol2 * vv:
+            return False, it, 0.0, 0.0, 0.0, 0.0, 0.0  # separating line with gap > tol
+        if vv - vw <= 1e-13 * vv:
+            return False, it, 0.0, 0.0, 0.0, 0.0, 0.0  # converged at distance ~|v| > tol
+        if k == 1:
+            vx_, vy_, lam = _seg_closest(p0, pn)
+            if lam >= 1.0:
+                p0 = pn
+            elif lam > 0.0:
+                p1 = pn
+                k = 2
+            wit = _mix(p0, pn, lam) if k == 2 else p0
+        else:
+            # Triangle p0, p1, pn: origin inside -> overlap.
+            s_ = (p1[0] - p0[0]) * (pn[1] - p0[1]) - (p1[1] - p0[1]) * (pn[0] - p0[0])
+            c0 = p1[0] * pn[1] - p1[1] * pn[0]  # weight of p0 (times s_)
+            c1 = pn[0] * p0[1] - pn[1] * p0[0]  # weight of p1
+            c2 = p0[0] * p1[1] - p0[1] * p1[0]  # weight of pn
+            if s_ != 0.0 and ((s_ > 0.0 and c0 >= 0.0 and c1 >= 0.0 and c2 >= 0.0)
+                              or (s_ < 0.0 and c0 <= 0.0 and c1 <= 0.0 and c2 <= 0.0)):
+                l0 = c0 / s_
+                l1 = c1 / s_
+                l2 = 1.0 - l0 - l1
+                return (True, it,
+                        l0 * p0[2] + l1 * p1[2] + l2 * pn[2], l0 * p0[3] + l1 * p1[3] + l2 * pn[3],
+                        l0 * p0[4] + l1 * p1[4] + l2 * pn[4], l0 * p0[5] + l1 * p1[5] + l2 * pn[5],
+                        l0 * p0[6] + l1 * p1[6] + l2 * pn[6])
+            # Otherwise the closest point lies on an edge through the new point.
+            ax0, ay0, la = _seg_closest(p0, pn)
+            ax1, ay1, lb = _seg_closest(p1, pn)
+            if ax0 * ax0 + ay0 * ay0 <= ax1 * ax1 + ay1 * ay1:
+                vx_, vy_, lam, q = ax0, ay0, la, p0
+            else:
+                vx_, vy_, lam, q = ax1, ay1, lb, p1
+            if lam >= 1.0:
+                p0 = pn
+                k = 1
+                wit = pn
+            elif lam <= 0.0:
+                p0 = q
+                k = 1
+                wit = q
+            else:
+                p0 = q
+                p1 = pn
+                wit = _mix(q, pn, lam)
+    # Undecided after the iteration cap: the distance is within rounding of
+    # tol; count it as touching (safety first).
+    return True, GJK_MAX_ITER, wit[2], wit[3], wit[4], wit[5], wit[6]

@@ -1,0 +1,167 @@
+"""Public collision API: :func:`collide` and :class:`Collider`."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import _batch
+from ._projection import CASES
+from .poses import as_pose, common_batch_size
+from .shapes import as_prism_set
+
+__all__ = ["collide", "Collider", "CollisionResult", "CASES", "DEFAULT_RTOL"]
+
+#: Default relative tolerance per dtype. The absolute tolerance of a pair is
+#: ``atol + rtol * (R_a + R_b + |c_b - c_a|)`` (bounding radii of the end faces
+#: about their centres and the distance between the centres).
+DEFAULT_RTOL = {np.dtype(np.float64): 1e-9, np.dtype(np.float32): 1e-5}
+
+
+@dataclass(frozen=True)
+class CollisionResult:
+    """Result of :func:`collide` for ``N`` pose pairs.
+
+    Attributes
+    ----------
+    hit : numpy.ndarray of bool, shape (N,)
+        True where the prisms intersect or touch within the pair's tolerance.
+    case : numpy.ndarray of int8, shape (N,)
+        Case number of the relative pose (1-9 as in the paper, 10-11 added;
+        see :data:`prismbatch.CASES`).
+    """
+
+    hit: np.ndarray
+    case: np.ndarray
+    _contact: np.ndarray | None = None
+
+    @property
+    def contact(self) -> np.ndarray:
+        """(N, 3) contact points in world coordinates, NaN rows where no hit.
+
+        Each point lies inside both prisms within the pair's tolerance.
+        Only available when :func:`collide` was called with ``contact=True``.
+        """
+        if self._contact is None:
+            raise AttributeError("contact points were not computed: call collide(..., contact=True)")
+        return self._contact
+
+    def __len__(self):
+        return self.hit.shape[0]
+
+    def case_counts(self) -> dict:
+        """Number of pairs per case number (cases that occur only)."""
+        vals, cnt = np.unique(self.case, return_counts=True)
+        return {int(v): int(c) for v, c in zip(vals, cnt)}
+
+
+class Collider:
+    """Two shapes fixed once, queried for many poses (like coal's ComputeCollision).
+
+    Parameters
+    ----------
+    shape_a, shape_b : Prism or PrismSet
+        A :class:`~prismbatch.Prism` shared by every pair, or a
+        :class:`~prismbatch.PrismSet` holding one prism per pair.
+    rtol : float, optional
+        Relative tolerance (default 1e-9 for float64, 1e-5 for float32).
+    atol : float, optional
+        Absolute tolerance added to the relative one (default 0).
+    dtype : {numpy.float64, numpy.float32}, optional
+        Precision of the stored shapes and poses.
+    """
+
+    def __init__(self, shape_a, shape_b, *, rtol=None, atol=0.0, dtype=np.float64):
+        dt = np.dtype(dtype)
+        if dt not in DEFAULT_RTOL:
+            raise TypeError(f"dtype must be numpy.float64 or numpy.float32, got {dt}")
+        self.dtype = dt
+        self.rtol = float(DEFAULT_RTOL[dt] if rtol is None else rtol)
+        self.atol = float(atol)
+        if not (np.isfinite(self.rtol) and self.rtol >= 0 and np.isfinite(self.atol) and self.atol >= 0):
+            raise ValueError(f"rtol and atol must be finite and >= 0, got rtol={rtol}, atol={atol}")
+        set_a, self._a_per = as_prism_set(shape_a, "shape_a")
+        set_b, self._b_per = as_prism_set(shape_b, "shape_b")
+        self.shape_a, self.shape_b = shape_a, shape_b
+        self._a = set_a.kernel_arrays(dt)
+        self._b = set_b.kernel_arrays(dt)
+        self._n_shapes = None
+        for per, s, nm in ((self._a_per, set_a, "shape_a"), (self._b_per, set_b, "shape_b")):
+            if per:
+                if self._n_shapes is not None and self._n_shapes != len(s):
+                    raise ValueError(f"shape_a and shape_b are PrismSets of different sizes "
+                                     f"({self._n_shapes} and {len(s)})")
+                self._n_shapes = len(s)
+
+    def collide(self, pos_a, rot_a=None, pos_b=None, rot_b=None, *, contact=False, quat_order=None,
+                parallel=True):
+        """Test the pose pairs; see :func:`collide` for the arguments."""
+        if pos_b is None:
+            raise TypeError("collide needs a pose for b: pos_b (and rot_b, or a 4x4 transform as pos_b)")
+        pa, ra = as_pose(pos_a, rot_a, quat_order=quat_order, name="a")
+        pb, rb = as_pose(pos_b, rot_b, quat_order=quat_order, name="b")
+        n = common_batch_size(pa, ra, pb, rb, n_shapes=self._n_shapes)
+        dt = self.dtype
+        pa = np.ascontiguousarray(pa.reshape(-1, 3), dtype=dt)
+        pb = np.ascontiguousarray(pb.reshape(-1, 3), dtype=dt)
+        ra = np.ascontiguousarray(ra.reshape(-1, 3, 3), dtype=dt)
+        rb = np.ascontiguousarray(rb.reshape(-1, 3, 3), dtype=dt)
+        hit, case, cont = _batch.run(self._a, self._b, pa, ra, pb, rb, n,
+                                     self.rtol, self.atol, bool(contact), bool(parallel))
+        return CollisionResult(hit, case, cont if contact else None)
+
+
+def collide(shape_a, shape_b, pos_a, rot_a=None, pos_b=None, rot_b=None, *, contact=False,
+            quat_order=None, rtol=None, atol=0.0, dtype=np.float64, parallel=True):
+    """Collision status of two convex semi-infinite prisms for a batch of poses.
+
+    Parameters
+    ----------
+    shape_a, shape_b : Prism or PrismSet
+        One prism shared by all pairs, or a PrismSet with one prism per pair.
+    pos_a, pos_b : array_like, shape (3,) or (N, 3); or (4, 4) / (N, 4, 4)
+        Positions of the prisms' local origins in world coordinates, or
+        homogeneous transforms (then leave ``rot_a``/``rot_b`` as None).
+    rot_a, rot_b : array_like or scipy.spatial.transform.Rotation
+        Rotations whose columns are the local axes in world coordinates:
+        (3, 3) / (N, 3, 3) matrices, a scipy ``Rotation``, or quaternions
+        (4,) / (N, 4) together with ``quat_order``.
+    contact : bool, optional
+        Also compute contact points (a status-only call skips that work).
+    quat_order : {"wxyz", "xyzw"}, optional
+        Component order of quaternion rotations (required for quaternions).
+    rtol, atol : float, optional
+        Tolerance of touching: a pair's tolerance is
+        ``atol + rtol * (R_a + R_b + |c_b - c_a|)``. Bodies within it count as
+        colliding; a reported hit means the bodies are within sqrt(2) times it.
+    dtype : {numpy.float64, numpy.float32}, optional
+        Precision of the stored shapes and poses (float32 halves memory
+        traffic; its default rtol is 1e-5).
+    parallel : bool, optional
+        Spread pairs over Numba's threads (``numba.get_num_threads()``).
+
+    Returns
+    -------
+    CollisionResult
+        ``hit`` (N,) bool, ``case`` (N,) int8 and, with ``contact=True``,
+        ``contact`` (N, 3) world points (NaN rows where there is no hit).
+
+    Raises
+    ------
+    TypeError, ValueError
+        Bad shapes, poses, tolerances or batch sizes; the message says which
+        argument and index.
+
+    Examples
+    --------
+    >>> import numpy as np, prismbatch as pb
+    >>> a, b = pb.Prism.regular(5, 2.0), pb.Prism.regular(6, 2.5)
+    >>> down = np.diag([1.0, -1.0, -1.0])          # a's axis points down
+    >>> r = pb.collide(a, b, [0, 0, 0], down, [[0, 0, 1.0], [0, 0, 0.0]], np.eye(3))
+    >>> r.hit.tolist(), r.case.tolist()
+    ([False, True], [1, 4])
+    """
+    col = Collider(shape_a, shape_b, rtol=rtol, atol=atol, dtype=dtype)
+    return col.collide(pos_a, rot_a, pos_b, rot_b, contact=contact, quat_order=quat_order,
+                       parallel=parallel)

@@ -1,0 +1,217 @@
+"""Reference peers (python-fcl, optionally coal) used by the benchmarks.
+
+General-purpose collision libraries have no semi-infinite prism, so each
+prism is stood in for by a FINITE convex extrusion of its polygon from the
+end face (local z = 0) to local z = L along +z; see ``fcl_standin_length``
+for the rule used to pick L.
+
+The optional dependencies are imported lazily inside the functions, so
+importing this module never requires them.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = [
+    "fcl_standin_length",
+    "fcl_prism",
+    "coal_prism",
+    "FCLPeer",
+    "CoalPeer",
+]
+
+_FCL_MISSING = "python-fcl is not installed: pip install 'prismbatch[fcl]'"
+_COAL_MISSING = "coal is not installed: pip install 'prismbatch[coal]' (or pip install coal)"
+
+
+def _import_fcl():
+    try:
+        import fcl  # noqa: PLC0415
+    except ImportError as exc:  # pragma: no cover - depends on environment
+        raise ImportError(_FCL_MISSING) from exc
+    return fcl
+
+
+def _import_coal():
+    try:
+        import coal  # noqa: PLC0415
+    except ImportError as exc:  # pragma: no cover - depends on environment
+        raise ImportError(_COAL_MISSING) from exc
+    return coal
+
+
+def _polygon_ccw(xy) -> np.ndarray:
+    poly = np.asarray(xy, dtype=float).reshape(-1, 2)
+    if len(poly) < 3:
+        raise ValueError("polygon needs at least 3 vertices")
+    x, y = poly[:, 0], poly[:, 1]
+    area2 = float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
+    if area2 == 0.0:
+        raise ValueError("polygon has zero area")
+    return poly[::-1].copy() if area2 < 0.0 else poly.copy()
+
+
+def _max_radius(xy) -> float:
+    poly = np.asarray(xy, dtype=float).reshape(-1, 2)
+    return float(np.max(np.hypot(poly[:, 0], poly[:, 1])))
+
+
+def fcl_standin_length(xy_a, xy_b, pos_a, pos_b) -> float:
+    """Finite length L standing in for a semi-infinite prism.
+
+    Rule::
+
+        L = 4 * (|p_a - p_b| + R_a + R_b)
+
+    where ``p_a``, ``p_b`` are the prisms' positions (end-face origins) and
+    ``R_a``, ``R_b`` the polygons' maximum vertex radii about their local
+    origin.  This is long enough that, for poses whose intersection (if any)
+    lies within that distance of the end faces, the far caps cannot matter.
+    It is NOT a guarantee for every pose: two nearly parallel axes that
+    converge slowly can first meet arbitrarily far from both end faces, and
+    then the truncated stand-ins report "no collision".
+    """
+    pa = np.asarray(pos_a, dtype=float).reshape(3)
+    pb = np.asarray(pos_b, dtype=float).reshape(3)
+    return 4.0 * (float(np.linalg.norm(pa - pb)) + _max_radius(xy_a) + _max_radius(xy_b))
+
+
+def _prism_mesh(xy, length):
+    """Vertices (2n, 3) and outward-oriented faces of the extruded polygon.
+
+    Vertices 0..n-1 are the polygon at z = 0, n..2n-1 at z = length.
+    Faces (vertex index lists, CCW seen from outside): the bottom cap
+    (normal -z), the top cap (normal +z), and n side quads.
+    """
+    poly = _polygon_ccw(xy)
+    length = float(length)
+    if not length > 0.0:
+        raise ValueError("length must be positive")
+    n = len(poly)
+    verts = np.zeros((2 * n, 3))
+    verts[:n, :2] = poly
+    verts[n:, :2] = poly
+    verts[n:, 2] = length
+    faces = [list(range(n - 1, -1, -1)), list(range(n, 2 * n))]
+    for i in range(n):
+        j = (i + 1) % n
+        # (v_j - v_i) x (+z) = outward normal for a CCW polygon
+        faces.append([i, j, n + j, n + i])
+    return verts, faces
+
+
+def fcl_prism(xy, length):
+    """``fcl.Convex`` of the polygon extruded from z = 0 to z = ``length``.
+
+    python-fcl's constructor is ``fcl.Convex(verts, num_faces, faces)``
+    with ``verts`` (V, 3) float and ``faces`` a flat int array
+    ``[k, i0, ..., i_{k-1}, k, ...]``; faces are listed CCW seen from
+    outside (outward normals).
+    """
+    fcl = _import_fcl()
+    verts, faces = _prism_mesh(xy, length)
+    flat = []
+    for f in faces:
+        flat.append(len(f))
+        flat.extend(f)
+    return fcl.Convex(verts, len(faces), np.asarray(flat, dtype=np.int64))
+
+
+def coal_prism(xy, length):
+    """``coal.Convex`` of the extruded polygon (triangulated, outward facing)."""
+    coal = _import_coal()
+    verts, faces = _prism_mesh(xy, length)
+    pts = coal.StdVec_Vec3s()
+    for v in verts:
+        pts.append(np.asarray(v, dtype=float))
+    tris = coal.StdVec_Triangle()
+    for f in faces:  # fan triangulation keeps the (outward) orientation
+        for k in range(1, len(f) - 1):
+            tris.append(coal.Triangle(int(f[0]), int(f[k]), int(f[k + 1])))
+    return coal.Convex(pts, tris)
+
+
+def _batch_poses(pos_a, rot_a, pos_b, rot_b):
+    pos_a = np.asarray(pos_a, dtype=float)
+    pos_b = np.asarray(pos_b, dtype=float)
+    rot_a = np.asarray(rot_a, dtype=float)
+    rot_b = np.asarray(rot_b, dtype=float)
+    N = max(pos_a.reshape(-1, 3).shape[0], pos_b.reshape(-1, 3).shape[0],
+            rot_a.reshape(-1, 3, 3).shape[0], rot_b.reshape(-1, 3, 3).shape[0])
+    pos_a = np.broadcast_to(pos_a.reshape(-1, 3), (N, 3))
+    pos_b = np.broadcast_to(pos_b.reshape(-1, 3), (N, 3))
+    rot_a = np.broadcast_to(rot_a.reshape(-1, 3, 3), (N, 3, 3))
+    rot_b = np.broadcast_to(rot_b.reshape(-1, 3, 3), (N, 3, 3))
+    return N, pos_a, rot_a, pos_b, rot_b
+
+
+class FCLPeer:
+    """python-fcl boolean collision between two finite prism stand-ins.
+
+    Built once from the two polygons and the stand-in ``length`` (see
+    ``fcl_standin_length``); the ``fcl.CollisionObject``s are reused and
+    only their transforms change per query.  A fresh ``CollisionRequest`` /
+    ``CollisionResult`` is created per query (python-fcl accumulates
+    contacts into a reused result).
+    """
+
+    def __init__(self, xy_a, xy_b, length):
+        fcl = _import_fcl()
+        self._fcl = fcl
+        self.length = float(length)
+        self.geom_a = fcl_prism(xy_a, self.length)
+        self.geom_b = fcl_prism(xy_b, self.length)
+        self.obj_a = fcl.CollisionObject(self.geom_a, fcl.Transform())
+        self.obj_b = fcl.CollisionObject(self.geom_b, fcl.Transform())
+
+    def collide(self, pos_a, rot_a, pos_b, rot_b) -> bool:
+        fcl = self._fcl
+        self.obj_a.setTransform(fcl.Transform(np.asarray(rot_a, dtype=float).reshape(3, 3),
+                                              np.asarray(pos_a, dtype=float).reshape(3)))
+        self.obj_b.setTransform(fcl.Transform(np.asarray(rot_b, dtype=float).reshape(3, 3),
+                                              np.asarray(pos_b, dtype=float).reshape(3)))
+        request = fcl.CollisionRequest()
+        result = fcl.CollisionResult()
+        fcl.collide(self.obj_a, self.obj_b, request, result)
+        return bool(result.is_collision)
+
+    def collide_batch(self, pos_a, rot_a, pos_b, rot_b) -> np.ndarray:
+        """(N,) bool for per-pair poses pos (N, 3), rot (N, 3, 3) (broadcasts)."""
+        N, pos_a, rot_a, pos_b, rot_b = _batch_poses(pos_a, rot_a, pos_b, rot_b)
+        out = np.empty(N, dtype=bool)
+        for k in range(N):
+            out[k] = self.collide(pos_a[k], rot_a[k], pos_b[k], rot_b[k])
+        return out
+
+
+class CoalPeer:
+    """Same as ``FCLPeer`` but with coal (the maintained hpp-fcl fork)."""
+
+    def __init__(self, xy_a, xy_b, length):
+        coal = _import_coal()
+        self._coal = coal
+        self.length = float(length)
+        self.geom_a = coal_prism(xy_a, self.length)
+        self.geom_b = coal_prism(xy_b, self.length)
+        self.obj_a = coal.CollisionObject(self.geom_a, coal.Transform3s())
+        self.obj_b = coal.CollisionObject(self.geom_b, coal.Transform3s())
+
+    def collide(self, pos_a, rot_a, pos_b, rot_b) -> bool:
+        coal = self._coal
+        self.obj_a.setTransform(coal.Transform3s(np.asarray(rot_a, dtype=float).reshape(3, 3),
+                                                 np.asarray(pos_a, dtype=float).reshape(3)))
+        self.obj_b.setTransform(coal.Transform3s(np.asarray(rot_b, dtype=float).reshape(3, 3),
+                                                 np.asarray(pos_b, dtype=float).reshape(3)))
+        request = coal.CollisionRequest()
+        result = coal.CollisionResult()
+        coal.collide(self.obj_a, self.obj_b, request, result)
+        return bool(result.isCollision())
+
+    def collide_batch(self, pos_a, rot_a, pos_b, rot_b) -> np.ndarray:
+        """(N,) bool for per-pair poses pos (N, 3), rot (N, 3, 3) (broadcasts)."""
+        N, pos_a, rot_a, pos_b, rot_b = _batch_poses(pos_a, rot_a, pos_b, rot_b)
+        out = np.empty(N, dtype=bool)
+        for k in range(N):
+            out[k] = self.collide(pos_a[k], rot_a[k], pos_b[k], rot_b[k])
+        return out

@@ -1,0 +1,519 @@
+"""Parsing, validation and broadcasting of rigid-body poses.
+
+Conventions
+-----------
+A pose is a position ``p`` of shape ``(3,)`` and a rotation ``R`` of shape
+``(3, 3)`` whose *columns* are the body's local axes expressed in world
+coordinates, so that ``world = p + R @ local``.  Batches of poses are
+``(N, 3)`` positions and ``(N, 3, 3)`` rotations.
+
+Everything here is plain NumPy: these functions run once per call on the
+Python side, before the Numba kernels, and their job is to turn whatever the
+user passed into clean C-contiguous arrays or to fail loudly, naming the
+argument and the index of the first offending pose.  Nothing is repaired
+silently (no re-normalisation, no re-orthogonalisation).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = [
+    "as_rotations",
+    "as_positions",
+    "as_pose",
+    "broadcast_poses",
+    "relative_poses",
+]
+
+# Tolerance on max |R^T R - I| for matrices given in double precision (or as
+# integers).  Tight, because a drifting rotation silently distorts geometry.
+ORTHO_TOL_F64 = 1e-9
+# Float32 input cannot be orthonormal to better than ~1e-7 per entry, so the
+# tolerance is relaxed when (and only when) the *input* is single precision.
+ORTHO_TOL_F32 = 1e-5
+# Quaternions must already be unit length; we do not normalise behind the
+# user's back because an off-norm quaternion usually signals a bug upstream.
+QUAT_NORM_TOL = 1e-6
+# The last row of a homogeneous transform must be [0, 0, 0, 1].
+TRANSFORM_ROW_TOL = 1e-12
+
+_QUAT_ORDERS = ("wxyz", "xyzw")
+_OUT_DTYPES = (np.dtype(np.float64), np.dtype(np.float32))
+
+
+# ---------------------------------------------------------------------------
+# small helpers
+# ---------------------------------------------------------------------------
+def _where(name: str, i: int | None) -> str:
+    """``name`` for a single item, ``name[i]`` for an item of a batch."""
+    return name if i is None else f"{name}[{i}]"
+
+
+def _out_dtype(dtype) -> np.dtype:
+    try:
+        dt = np.dtype(dtype)
+    except TypeError as exc:
+        raise TypeError(
+            f"dtype must be np.float64 or np.float32, got {dtype!r}"
+        ) from exc
+    if dt not in _OUT_DTYPES:
+        raise TypeError(f"dtype must be np.float64 or np.float32, got {dt}")
+    return dt
+
+
+def _as_real_array(x, name: str) -> np.ndarray:
+    """``np.asarray`` that rejects non-real-numeric data with a named error."""
+    try:
+        arr = np.asarray(x)
+    except ValueError as exc:
+        # Ragged nested lists: numpy's own message does not say which argument.
+        raise ValueError(f"{name} could not be converted to an array: {exc}") from exc
+    # Only signed/unsigned integers and floats.  bool is excluded on purpose:
+    # a boolean "rotation" is almost certainly a mask passed by mistake.
+    if arr.dtype.kind not in "iuf":
+        raise TypeError(
+            f"{name} must have a real numeric dtype (integer or float), "
+            f"got dtype {arr.dtype}"
+        )
+    return arr
+
+
+def _ortho_tol(input_dtype: np.dtype) -> float:
+    # Only low-precision float input earns the looser tolerance; integer
+    # matrices are exact, and float64/longdouble must meet the tight bound.
+    if input_dtype.kind == "f" and input_dtype.itemsize < 8:
+        return ORTHO_TOL_F32
+    return ORTHO_TOL_F64
+
+
+def _check_finite(a64: np.ndarray, name: str, batched: bool, what: str = "") -> None:
+    """Raise naming the first pose whose entries are not all finite."""
+    if batched:
+        bad = ~np.isfinite(a64.reshape(a64.shape[0], -1)).all(axis=1)
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            raise ValueError(
+                f"{_where(name, i)}{what} contains non-finite values (NaN or inf)"
+            )
+    elif not np.isfinite(a64).all():
+        raise ValueError(f"{name}{what} contains non-finite values (NaN or inf)")
+
+
+def _check_rotation_matrices(
+    R64: np.ndarray, name: str, tol: float, batched: bool, what: str = ""
+) -> None:
+    """Finite, orthonormal within ``tol``, and proper (det > 0).
+
+    ``R64`` is float64 of shape (N, 3, 3) if ``batched`` else (3, 3).
+    """
+    _check_finite(R64, name, batched, what)
+    Rb = R64 if batched else R64[None]
+    if Rb.shape[0] == 0:
+        return
+    eye = np.eye(3)
+    err = np.abs(np.matmul(np.swapaxes(Rb, -1, -2), Rb) - eye).max(axis=(1, 2))
+    bad = err > tol
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise ValueError(
+            f"{_where(name, i if batched else None)}{what} is not orthonormal: "
+            f"max |R^T R - I| = {err[i]:.3e} > {tol:.0e}"
+        )
+    det = np.linalg.det(Rb)
+    bad = det <= 0.0
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise ValueError(
+            f"{_where(name, i if batched else None)}{what} is a reflection "
+            f"(det = {det[i]:.6g}); a rotation must have det = +1"
+        )
+
+
+def _quat_to_matrix(q64: np.ndarray, order: str) -> np.ndarray:
+    """(N, 4) float64 quaternions -> (N, 3, 3) rotation matrices."""
+    if order == "wxyz":
+        w, x, y, z = q64[:, 0], q64[:, 1], q64[:, 2], q64[:, 3]
+    else:  # "xyzw"
+        x, y, z, w = q64[:, 0], q64[:, 1], q64[:, 2], q64[:, 3]
+    # s = 2/|q|^2 instead of 2: the norm was already checked to be within
+    # 1e-6 of 1, and this scaling makes the output exactly orthonormal (to
+    # rounding) instead of off by ~2e-6, which would fail the 1e-9 check.
+    # q and -q give the same matrix since every term is quadratic in q.
+    s = 2.0 / (w * w + x * x + y * y + z * z)
+    R = np.empty((q64.shape[0], 3, 3))
+    R[:, 0, 0] = 1.0 - s * (y * y + z * z)
+    R[:, 0, 1] = s * (x * y - z * w)
+    R[:, 0, 2] = s * (x * z + y * w)
+    R[:, 1, 0] = s * (x * y + z * w)
+    R[:, 1, 1] = 1.0 - s * (x * x + z * z)
+    R[:, 1, 2] = s * (y * z - x * w)
+    R[:, 2, 0] = s * (x * z - y * w)
+    R[:, 2, 1] = s * (y * z + x * w)
+    R[:, 2, 2] = 1.0 - s * (x * x + y * y)
+    return R
+
+
+def _is_scipy_rotation(obj) -> bool:
+    # Duck typing so that scipy stays an optional, lazily used dependency.
+    return hasattr(obj, "as_matrix") and hasattr(obj, "as_quat") and not isinstance(
+        obj, np.ndarray
+    )
+
+
+_ROT_SHAPES = (
+    "(3, 3) or (N, 3, 3) rotation matrices, a scipy Rotation, "
+    "or (4,) / (N, 4) quaternions together with quat_order"
+)
+
+
+# ---------------------------------------------------------------------------
+# public API
+# ---------------------------------------------------------------------------
+def as_rotations(rot, *, quat_order=None, name="rot", dtype=np.float64) -> np.ndarray:
+    """Parse and validate one rotation or a batch of rotations.
+
+    Parameters
+    ----------
+    rot : array_like or scipy.spatial.transform.Rotation
+        One of
+
+        * rotation matrices of shape ``(3, 3)`` or ``(N, 3, 3)`` with a real
+          numeric dtype; columns are the body axes in world coordinates;
+        * a ``scipy.spatial.transform.Rotation`` (single or batched);
+        * unit quaternions of shape ``(4,)`` or ``(N, 4)``, only if
+          ``quat_order`` is given.
+    quat_order : {None, "wxyz", "xyzw"}, optional
+        Component order of quaternion input: ``"wxyz"`` is scalar-first
+        (fcl, coal, MuJoCo), ``"xyzw"`` is scalar-last (scipy).  There is
+        no default because guessing wrong gives a valid but wrong rotation.
+    name : str, optional
+        Argument name used in error messages.
+    dtype : {np.float64, np.float32}, optional
+        Output dtype.  Validation is always done in float64.
+
+    Returns
+    -------
+    numpy.ndarray
+        C-contiguous array of shape ``(3, 3)`` for a single rotation or
+        ``(N, 3, 3)`` for a batch (the batch-ness of the input is kept).
+
+    Raises
+    ------
+    TypeError
+        If the input dtype is not integer or float (bool, complex, object,
+        string), or ``dtype`` is not float64/float32.
+    ValueError
+        On a wrong shape, a last dimension of 4 without ``quat_order``, an
+        unknown ``quat_order``, a quaternion whose norm is not within 1e-6
+        of 1, non-finite entries, a matrix that is not orthonormal (max
+        ``|R^T R - I|`` above 1e-9, or 1e-5 for float32 input), or a
+        reflection (det < 0).  Messages name ``name`` and the index of the
+        first offending rotation.
+    """
+    out_dt = _out_dtype(dtype)
+    if quat_order is not None and quat_order not in _QUAT_ORDERS:
+        raise ValueError(
+            f"quat_order must be 'wxyz' (scalar-first) or 'xyzw' (scalar-last), "
+            f"got {quat_order!r}"
+        )
+
+    if _is_scipy_rotation(rot):
+        R64 = np.asarray(rot.as_matrix(), dtype=np.float64)
+        single = getattr(rot, "single", R64.ndim == 2)
+        if single and R64.ndim == 3 and R64.shape[0] == 1:  # defensive
+            R64 = R64[0]
+        batched = R64.ndim == 3
+        _check_rotation_matrices(R64, name, ORTHO_TOL_F64, batched)
+        return np.ascontiguousarray(R64, dtype=out_dt)
+
+    arr = _as_real_array(rot, name)
+    shape = arr.shape
+
+    if arr.ndim in (1, 2) and shape[-1] == 4:
+        if quat_order is None:
+            hint = (
+                " (a (4, 4) homogeneous transform must be passed as the pose "
+                "itself with rot=None, not as a rotation)"
+                if shape == (4, 4)
+                else ""
+            )
+            raise ValueError(
+                f"{name} has shape {shape}, which looks like quaternions; "
+                f"quaternions need an explicit quat_order ('wxyz' or 'xyzw'){hint}"
+            )
+        batched = arr.ndim == 2
+        q64 = np.asarray(arr, dtype=np.float64).reshape(-1, 4)
+        _check_finite(q64 if batched else q64[0], name, batched)
+        norm = np.sqrt(np.einsum("ij,ij->i", q64, q64))
+        bad = np.abs(norm - 1.0) > QUAT_NORM_TOL
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            raise ValueError(
+                f"{_where(name, i if batched else None)} is a quaternion of norm "
+                f"{norm[i]:.9g}; expected 1 within {QUAT_NORM_TOL:.0e} "
+                f"(quaternions are not normalised automatically)"
+            )
+        R64 = _quat_to_matrix(q64, quat_order)
+        if not batched:
+            R64 = R64[0]
+        # Cheap, and guards the conversion itself.
+        _check_rotation_matrices(R64, name, ORTHO_TOL_F64, batched)
+        return np.ascontiguousarray(R64, dtype=out_dt)
+
+    if arr.ndim not in (2, 3) or shape[-2:] != (3, 3):
+        hint = ""
+        if arr.ndim == 3 and shape[-2:] == (4, 4):
+            hint = (
+                " ((N, 4, 4) homogeneous transforms must be passed as the pose "
+                "with rot=None)"
+            )
+        raise ValueError(f"{name} has shape {shape}; expected {_ROT_SHAPES}{hint}")
+
+    batched = arr.ndim == 3
+    R64 = np.asarray(arr, dtype=np.float64)
+    _check_rotation_matrices(R64, name, _ortho_tol(arr.dtype), batched)
+    return np.ascontiguousarray(R64, dtype=out_dt)
+
+
+def as_positions(pos, *, name="pos", dtype=np.float64) -> np.ndarray:
+    """Parse and validate one position or a batch of positions.
+
+    Parameters
+    ----------
+    pos : array_like
+        Shape ``(3,)`` or ``(N, 3)``, real numeric dtype.
+    name : str, optional
+        Argument name used in error messages.
+    dtype : {np.float64, np.float32}, optional
+        Output dtype.  Validation is always done in float64.
+
+    Returns
+    -------
+    numpy.ndarray
+        C-contiguous array of shape ``(3,)`` or ``(N, 3)``.
+
+    Raises
+    ------
+    TypeError
+        If the dtype is not integer or float, or ``dtype`` is not
+        float64/float32.
+    ValueError
+        On a wrong shape or non-finite entries (the message names ``name``
+        and the index of the first bad position).
+    """
+    out_dt = _out_dtype(dtype)
+    arr = _as_real_array(pos, name)
+    if arr.ndim not in (1, 2) or arr.shape[-1] != 3:
+        raise ValueError(f"{name} has shape {arr.shape}; expected (3,) or (N, 3)")
+    p64 = np.asarray(arr, dtype=np.float64)
+    _check_finite(p64, name, arr.ndim == 2)
+    return np.ascontiguousarray(p64, dtype=out_dt)
+
+
+def as_pose(pos, rot=None, *, quat_order=None, name="a", dtype=np.float64):
+    """Parse one pose or a batch of poses.
+
+    Parameters
+    ----------
+    pos : array_like
+        If ``rot`` is given: positions, ``(3,)`` or ``(N, 3)``.  If ``rot``
+        is None: homogeneous transforms ``(4, 4)`` or ``(N, 4, 4)`` whose
+        last row is ``[0, 0, 0, 1]`` (within 1e-12).
+    rot : array_like or scipy.spatial.transform.Rotation, optional
+        Rotations in any form accepted by :func:`as_rotations`.
+    quat_order : {None, "wxyz", "xyzw"}, optional
+        Required if ``rot`` holds quaternions.
+    name : str, optional
+        Suffix used in error messages: positions are reported as
+        ``"pos_" + name``, rotations as ``"rot_" + name`` and transforms as
+        ``"pose_" + name``.
+    dtype : {np.float64, np.float32}, optional
+        Output dtype.  Validation is always done in float64.
+
+    Returns
+    -------
+    pos : numpy.ndarray
+        ``(3,)`` or ``(N, 3)``, C-contiguous.
+    rot : numpy.ndarray
+        ``(3, 3)`` or ``(N, 3, 3)``, C-contiguous.
+
+    Raises
+    ------
+    TypeError, ValueError
+        As :func:`as_positions` and :func:`as_rotations`; additionally a
+        ValueError if a transform's last row is not ``[0, 0, 0, 1]``.
+
+    Notes
+    -----
+    Positions and rotations are not broadcast against each other here;
+    that is :func:`broadcast_poses`'s job, so a single rotation with a
+    batch of positions is allowed.
+    """
+    if rot is not None:
+        p = as_positions(pos, name="pos_" + name, dtype=dtype)
+        R = as_rotations(rot, quat_order=quat_order, name="rot_" + name, dtype=dtype)
+        return p, R
+
+    out_dt = _out_dtype(dtype)
+    tname = "pose_" + name
+    arr = _as_real_array(pos, tname)
+    if arr.ndim not in (2, 3) or arr.shape[-2:] != (4, 4):
+        raise ValueError(
+            f"{tname} has shape {arr.shape}; with rot=None the pose must be "
+            f"(4, 4) or (N, 4, 4) homogeneous transforms "
+            f"(pass the rotation as rot=... to give a position separately)"
+        )
+    batched = arr.ndim == 3
+    T64 = np.asarray(arr, dtype=np.float64)
+    _check_finite(T64, tname, batched)
+    Tb = T64 if batched else T64[None]
+    last_row = np.array([0.0, 0.0, 0.0, 1.0])
+    row_err = np.abs(Tb[:, 3, :] - last_row).max(axis=1, initial=0.0)
+    bad = row_err > TRANSFORM_ROW_TOL
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise ValueError(
+            f"{_where(tname, i if batched else None)} has last row "
+            f"{Tb[i, 3, :].tolist()}; a homogeneous transform needs [0, 0, 0, 1]"
+        )
+    R64 = T64[..., :3, :3]
+    _check_rotation_matrices(
+        R64, tname, _ortho_tol(arr.dtype), batched, what=" rotation block"
+    )
+    p = np.ascontiguousarray(T64[..., :3, 3], dtype=out_dt)
+    R = np.ascontiguousarray(R64, dtype=out_dt)
+    return p, R
+
+
+def _batch_size(a: np.ndarray, single_ndim: int, name: str) -> int | None:
+    """None for a single item, else the leading dimension."""
+    a = np.asarray(a)
+    core = (3,) if single_ndim == 1 else (3, 3)
+    if a.ndim == single_ndim and a.shape == core:
+        return None
+    if a.ndim == single_ndim + 1 and a.shape[1:] == core:
+        return a.shape[0]
+    raise ValueError(
+        f"{name} has shape {a.shape}; expected {core} or "
+        f"(N, {', '.join(map(str, core))})"
+    )
+
+
+def common_batch_size(pos_a, rot_a, pos_b, rot_b, *, n_shapes=None):
+    """Common batch size ``N`` of parsed poses (and a shape set), without copying.
+
+    Single items and batches of one broadcast against anything; any two other
+    sizes must agree. Raises ValueError listing every argument's batch size,
+    e.g. ``"batch sizes do not match: pos_a has 5, rot_a has 1 (broadcast),
+    pos_b has 7, rot_b has 7"``.
+    """
+    arrays = (pos_a, rot_a, pos_b, rot_b)
+    names = ("pos_a", "rot_a", "pos_b", "rot_b")
+    ndims = (1, 2, 1, 2)
+    sizes = [_batch_size(a, nd, nm) for a, nd, nm in zip(arrays, ndims, names)]
+    entries = list(zip(names, sizes))
+    if n_shapes is not None:
+        entries.append(("shape set", int(n_shapes)))
+    big = {s for _, s in entries if s is not None and s != 1}
+    if len(big) > 1:
+        parts = []
+        for nm, s in entries:
+            if s is None:
+                parts.append(f"{nm} has 1 (single, broadcast)")
+            elif s == 1:
+                parts.append(f"{nm} has 1 (broadcast)")
+            else:
+                parts.append(f"{nm} has {s}")
+        raise ValueError("batch sizes do not match: " + ", ".join(parts))
+    return big.pop() if big else 1
+
+
+def broadcast_poses(pos_a, rot_a, pos_b, rot_b, *, n_shapes=None, dtype=np.float64):
+    """Broadcast two (batches of) poses to a common batch size ``N``.
+
+    Parameters
+    ----------
+    pos_a, pos_b : numpy.ndarray
+        Already parsed positions, ``(3,)`` or ``(N_i, 3)``.
+    rot_a, rot_b : numpy.ndarray
+        Already parsed rotations, ``(3, 3)`` or ``(N_i, 3, 3)``.
+    n_shapes : int or None, optional
+        Batch size imposed by a per-pair shape set (None if the shapes are
+        not given per pair).  Takes part in the same broadcasting rule.
+    dtype : {np.float64, np.float32}, optional
+        Output dtype (float64 by default).
+
+    Returns
+    -------
+    N : int
+        Common batch size (1 if everything is a single pose).
+    arrays : tuple of numpy.ndarray
+        ``(pos_a, rot_a, pos_b, rot_b)`` of shapes ``(N, 3)``,
+        ``(N, 3, 3)``, ``(N, 3)``, ``(N, 3, 3)``, C-contiguous and
+        writeable.  An input that already has the target shape, dtype and
+        layout is returned as is (no copy), so it may share memory with
+        the caller's array.
+
+    Raises
+    ------
+    ValueError
+        If an array has the wrong shape, or if batch sizes differ and are
+        not 1-vs-N.  The message lists every argument's batch size, e.g.
+        ``"batch sizes do not match: pos_a has 5, rot_a has 1 (broadcast),
+        pos_b has 7, rot_b has 7"``.
+    """
+    out_dt = _out_dtype(dtype)
+    arrays = (pos_a, rot_a, pos_b, rot_b)
+    ndims = (1, 2, 1, 2)
+    N = common_batch_size(pos_a, rot_a, pos_b, rot_b, n_shapes=n_shapes)
+
+    out = []
+    for a, nd in zip(arrays, ndims):
+        a = np.asarray(a)
+        target = (N,) + a.shape[-nd:]
+        if a.shape != target:
+            a = np.broadcast_to(a, target)
+        a = np.ascontiguousarray(a, dtype=out_dt)
+        # broadcast_to views are read-only, and ascontiguousarray keeps such
+        # a view when it is already contiguous (e.g. N=1).  Numba kernels with
+        # explicit signatures reject read-only arrays, so always hand back
+        # writeable memory.
+        if not a.flags.writeable:
+            a = a.copy()
+        out.append(a)
+    return N, tuple(out)
+
+
+def relative_poses(pos_a, rot_a, pos_b, rot_b, *, dtype=np.float64):
+    """Pose of ``b`` expressed in the frame of ``a``, for every pair.
+
+    Parameters
+    ----------
+    pos_a, rot_a, pos_b, rot_b : numpy.ndarray
+        Parsed poses, single or batched; broadcast with
+        :func:`broadcast_poses`.
+    dtype : {np.float64, np.float32}, optional
+        Output dtype.  The computation itself is done in float64.
+
+    Returns
+    -------
+    p_rel : numpy.ndarray
+        ``(N, 3)``, ``R_a^T (p_b - p_a)``.
+    R_rel : numpy.ndarray
+        ``(N, 3, 3)``, ``R_a^T R_b``.
+
+    Raises
+    ------
+    ValueError
+        As :func:`broadcast_poses`.
+    """
+    out_dt = _out_dtype(dtype)
+    _, (pa, Ra, pb, Rb) = broadcast_poses(pos_a, rot_a, pos_b, rot_b)
+    # Transpose via the einsum subscripts: no copy of R_a^T is materialised.
+    R_rel = np.einsum("nji,njk->nik", Ra, Rb)
+    p_rel = np.einsum("nji,nj->ni", Ra, pb - pa)
+    return (
+        np.ascontiguousarray(p_rel, dtype=out_dt),
+        np.ascontiguousarray(R_rel, dtype=out_dt),
+    )

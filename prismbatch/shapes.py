@@ -1,0 +1,278 @@
+"""Convex prisms and their structure-of-arrays storage.
+
+A prism is a semi-infinite convex right prism: its end face is a convex polygon
+given as ``(n, 2)`` vertices in the prism's local frame (at ``z = 0``) and its
+body extends from the end face along local ``+z`` without end.
+
+Kernels never see Python objects: a :class:`PrismSet` flattens every polygon
+into one vertex array plus offsets, and precomputes what the kernels need
+(vertices about an internal centre, unwrapped edge and polar angles for the
+binary searches, inverse edge lengths, bounding radii).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["Prism", "PrismSet", "validate_polygon"]
+
+_TWO_PI = 2.0 * np.pi
+# A turn between consecutive edges may be negative by this much (relative to
+# the product of the edge lengths) and still count as straight: nearly
+# collinear consecutive vertices are legal, dents are not.
+_CONVEX_RTOL = 1e-12
+
+
+def validate_polygon(xy, *, name="polygon"):
+    """Check a convex polygon and return it counter-clockwise as float64.
+
+    Parameters
+    ----------
+    xy : array_like, shape (n, 2)
+        Vertices in order (clockwise or counter-clockwise).
+    name : str
+        Used in error messages, e.g. ``"shape_b[3]"``.
+
+    Returns
+    -------
+    numpy.ndarray, shape (n, 2)
+        The same vertices, counter-clockwise, C-contiguous float64. The only
+        repair made is reversing clockwise order.
+
+    Raises
+    ------
+    TypeError
+        Non-numeric data.
+    ValueError
+        Wrong shape, NaN/inf, fewer than 3 vertices, repeated vertices, zero
+        area, a non-convex or self-intersecting outline. The message names the
+        polygon and the offending vertex.
+    """
+    arr = np.asarray(xy)
+    if arr.dtype.kind not in "iuf":
+        raise TypeError(f"{name}: vertices must be real numbers, got dtype {arr.dtype}")
+    arr = np.array(arr, dtype=np.float64, order="C")
+    if arr.ndim != 2 or arr.shape[1] != 2:
+        raise ValueError(f"{name}: vertices must have shape (n, 2), got {arr.shape}")
+    n = arr.shape[0]
+    if n < 3:
+        raise ValueError(f"{name}: a polygon needs at least 3 vertices, got {n}")
+    bad = ~np.isfinite(arr).all(axis=1)
+    if bad.any():
+        raise ValueError(f"{name}: vertex {int(np.argmax(bad))} is not finite: {arr[np.argmax(bad)]}")
+    edges = np.roll(arr, -1, axis=0) - arr
+    elen = np.hypot(edges[:, 0], edges[:, 1])
+    scale = float(np.max(np.abs(arr - arr.mean(axis=0))))
+    if scale == 0.0:
+        raise ValueError(f"{name}: all {n} vertices coincide")
+    # Repeated vertices: consecutive duplicates show as zero-length edges;
+    # non-consecutive ones make the outline self-touching (caught below).
+    zero = elen <= 1e-14 * scale
+    if zero.any():
+        k = int(np.argmax(zero))
+        raise ValueError(f"{name}: vertex {(k + 1) % n} repeats vertex {k} (zero-length edge)")
+    area2 = float(np.sum(arr[:, 0] * np.roll(arr[:, 1], -1) - np.roll(arr[:, 0], -1) * arr[:, 1]))
+    if abs(area2) <= 1e-13 * scale * scale:
+        raise ValueError(f"{name}: polygon has zero area (collinear vertices)")
+    if area2 < 0.0:
+        arr = np.ascontiguousarray(arr[::-1])
+        edges = np.roll(arr, -1, axis=0) - arr
+        elen = np.hypot(edges[:, 0], edges[:, 1])
+    prev = np.roll(edges, 1, axis=0)
+    cross = prev[:, 0] * edges[:, 1] - prev[:, 1] * edges[:, 0]
+    dot = prev[:, 0] * edges[:, 0] + prev[:, 1] * edges[:, 1]
+    dent = cross < -_CONVEX_RTOL * elen * np.roll(elen, 1)
+    if dent.any():
+        k = int(np.argmax(dent))
+        raise ValueError(f"{name}: polygon is not convex at vertex {k} (reflex turn)")
+    turns = np.arctan2(cross, dot)
+    total = float(np.sum(np.maximum(turns, 0.0)))
+    if abs(total - _TWO_PI) > 1e-6:
+        raise ValueError(
+            f"{name}: polygon outline is self-intersecting (it turns {total / _TWO_PI:.3f} times, not once)"
+        )
+    if np.any(np.abs(turns) >= np.pi - 1e-12):
+        k = int(np.argmax(np.abs(turns) >= np.pi - 1e-12))
+        raise ValueError(f"{name}: polygon folds back on itself at vertex {k}")
+    return arr
+
+
+def _centroid(ccw):
+    """Area centroid of a convex CCW polygon (strictly interior)."""
+    x, y = ccw[:, 0], ccw[:, 1]
+    # Shift first: keeps the shoelace sums well conditioned far from the origin.
+    x0, y0 = x.mean(), y.mean()
+    xs, ys = x - x0, y - y0
+    xn, yn = np.roll(xs, -1), np.roll(ys, -1)
+    cr = xs * yn - xn * ys
+    a = cr.sum() / 2.0
+    cx = ((xs + xn) * cr).sum() / (6.0 * a)
+    cy = ((ys + yn) * cr).sum() / (6.0 * a)
+    return np.array([cx + x0, cy + y0])
+
+
+def _kernel_data(ccw, centre):
+    """Per-polygon arrays the kernels use (see PrismSet attributes)."""
+    v = ccw - centre
+    e = np.roll(v, -1, axis=0) - v
+    elen = np.hypot(e[:, 0], e[:, 1])
+    prev = np.roll(e, 1, axis=0)
+    turn = np.arctan2(prev[:, 0] * e[:, 1] - prev[:, 1] * e[:, 0], prev[:, 0] * e[:, 0] + prev[:, 1] * e[:, 1])
+    turn = np.maximum(turn, 0.0)
+    eang = np.arctan2(e[0, 1], e[0, 0]) + np.concatenate(([0.0], np.cumsum(turn[1:])))
+    # Polar angle of each vertex about the centre, unwrapped to increase.
+    step = np.arctan2(
+        np.roll(v[:, 0], 1) * v[:, 1] - np.roll(v[:, 1], 1) * v[:, 0],
+        np.roll(v[:, 0], 1) * v[:, 0] + np.roll(v[:, 1], 1) * v[:, 1],
+    )
+    vang = np.arctan2(v[0, 1], v[0, 0]) + np.concatenate(([0.0], np.cumsum(step[1:])))
+    radius = float(np.max(np.hypot(v[:, 0], v[:, 1])))
+    return v, eang, vang, 1.0 / elen, radius
+
+
+class Prism:
+    """One semi-infinite convex right prism.
+
+    Parameters
+    ----------
+    xy : array_like, shape (n, 2)
+        End-face polygon in the prism's local frame (``z = 0``), clockwise or
+        counter-clockwise. The local origin need not lie inside it.
+
+    Attributes
+    ----------
+    xy : numpy.ndarray, shape (n, 2)
+        Vertices, counter-clockwise, in the local frame.
+    centre : numpy.ndarray, shape (2,)
+        Area centroid of the end face (the internal centre the kernels use).
+    radius : float
+        Largest distance from ``centre`` to a vertex.
+
+    Examples
+    --------
+    >>> import prismbatch as pb
+    >>> pb.Prism.regular(5, 2.0).n_vertices
+    5
+    """
+
+    def __init__(self, xy, *, name="prism"):
+        self.xy = validate_polygon(xy, name=name)
+        self.xy.flags.writeable = False
+        self.centre = _centroid(self.xy)
+        self.radius = float(np.max(np.hypot(*(self.xy - self.centre).T)))
+
+    @classmethod
+    def regular(cls, n, radius, *, phase=0.0, centre=(0.0, 0.0)):
+        """Regular ``n``-gon with circumradius ``radius``.
+
+        Parameters
+        ----------
+        n : int
+            Number of vertices (>= 3).
+        radius : float
+            Circumradius (> 0).
+        phase : float, optional
+            Polar angle of vertex 0 in radians.
+        centre : (2,) array_like, optional
+            Centre in the local frame.
+        """
+        n = int(n)
+        if n < 3:
+            raise ValueError(f"Prism.regular: n must be >= 3, got {n}")
+        if not (np.isfinite(radius) and radius > 0):
+            raise ValueError(f"Prism.regular: radius must be finite and > 0, got {radius}")
+        ang = phase + _TWO_PI * np.arange(n) / n
+        xy = np.column_stack([radius * np.cos(ang), radius * np.sin(ang)]) + np.asarray(centre, float)
+        return cls(xy)
+
+    @property
+    def n_vertices(self):
+        """Number of end-face vertices."""
+        return self.xy.shape[0]
+
+    def __repr__(self):
+        return f"Prism(n_vertices={self.n_vertices}, radius={self.radius:.6g})"
+
+
+class PrismSet:
+    """Many prisms in structure-of-arrays storage, one per pose pair.
+
+    Parameters
+    ----------
+    polygons : sequence of array_like or Prism
+        End-face polygons (each ``(n_k, 2)``) or :class:`Prism` objects.
+
+    Attributes
+    ----------
+    offsets : numpy.ndarray of int64, shape (m + 1,)
+        Polygon ``k`` owns rows ``offsets[k]:offsets[k + 1]`` of the flat arrays.
+    vx, vy : numpy.ndarray, shape (total,)
+        Vertex coordinates about each polygon's centre, counter-clockwise.
+    edge_angle : numpy.ndarray, shape (total,)
+        Direction angle of edge ``v_k -> v_{k+1}``, unwrapped so that it
+        increases along each polygon (binary search of extreme vertices).
+    vertex_angle : numpy.ndarray, shape (total,)
+        Polar angle of each vertex about the centre, unwrapped increasing
+        (binary search of the wedge holding a point, the paper's eq. 1).
+    inv_edge_len : numpy.ndarray, shape (total,)
+        ``1 / |v_{k+1} - v_k|`` for signed distances to edges.
+    centre : numpy.ndarray, shape (m, 2)
+        Internal centre (area centroid) of each polygon in its local frame.
+    radius : numpy.ndarray, shape (m,)
+        Bounding radius about the centre (the paper's ``L_0`` / ``L_a``).
+    """
+
+    def __init__(self, polygons):
+        if isinstance(polygons, (Prism, np.ndarray)) and not isinstance(polygons, Prism) and np.ndim(polygons) == 2:
+            raise TypeError("PrismSet takes a sequence of polygons; wrap a single polygon as [xy] or use Prism")
+        if isinstance(polygons, Prism):
+            polygons = [polygons]
+        prisms = []
+        for k, p in enumerate(polygons):
+            prisms.append(p if isinstance(p, Prism) else Prism(p, name=f"polygon {k}"))
+        if not prisms:
+            raise ValueError("PrismSet needs at least one polygon")
+        self.prisms = prisms
+        parts = [_kernel_data(p.xy, p.centre) for p in prisms]
+        counts = np.array([p.n_vertices for p in prisms], dtype=np.int64)
+        self.offsets = np.concatenate(([0], np.cumsum(counts))).astype(np.int64)
+        v = np.concatenate([q[0] for q in parts])
+        self.vx = np.ascontiguousarray(v[:, 0])
+        self.vy = np.ascontiguousarray(v[:, 1])
+        self.edge_angle = np.concatenate([q[1] for q in parts])
+        self.vertex_angle = np.concatenate([q[2] for q in parts])
+        self.inv_edge_len = np.concatenate([q[3] for q in parts])
+        self.radius = np.array([q[4] for q in parts])
+        self.centre = np.array([p.centre for p in prisms]).reshape(-1, 2)
+        for arr in (self.offsets, self.vx, self.vy, self.edge_angle, self.vertex_angle,
+                    self.inv_edge_len, self.radius, self.centre):
+            arr.flags.writeable = False
+
+    def __len__(self):
+        return len(self.prisms)
+
+    def __getitem__(self, k):
+        return self.prisms[k]
+
+    def __repr__(self):
+        n = np.diff(self.offsets)
+        return f"PrismSet({len(self)} prisms, {int(n.min())}..{int(n.max())} vertices)"
+
+    def kernel_arrays(self, dtype=np.float64):
+        """Tuple of arrays passed to the kernels, cast once to ``dtype``."""
+        f = lambda a: np.ascontiguousarray(a, dtype=dtype)  # noqa: E731
+        return (f(self.vx), f(self.vy), f(self.edge_angle), f(self.vertex_angle),
+                f(self.inv_edge_len), self.offsets, f(self.radius), f(self.centre))
+
+
+def as_prism_set(shape, name):
+    """Return ``(PrismSet, per_pair)`` for a Prism or PrismSet argument."""
+    if isinstance(shape, PrismSet):
+        return shape, True
+    if isinstance(shape, Prism):
+        cached = getattr(shape, "_as_set", None)
+        if cached is None:
+            cached = PrismSet([shape])
+            shape._as_set = cached
+        return cached, False
+    raise TypeError(f"{name} must be a prismbatch.Prism or PrismSet, got {type(shape).__name__}")

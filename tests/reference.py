@@ -1,0 +1,406 @@
+"""Independent, slow, obviously-correct references for the test-suite.
+
+Nothing in here imports ``prismbatch``: these functions are the ground truth
+the package is checked against, so they are written for clarity, not speed.
+
+Geometry (binding for the whole project)
+----------------------------------------
+A prism is a convex polygon ``xy`` (n, 2) in its local frame at z = 0
+(CCW or CW, normalised to CCW here) and a pose ``(p, R)`` where the COLUMNS
+of ``R`` are the local axes in world coordinates.  The body is
+
+    { p + R @ [x, y, t] : (x, y) in polygon, t >= 0 },
+
+semi-infinite along the local +z axis ``d = R[:, 2]``.
+
+Contents
+--------
+* ``margin_lp`` / ``margin_lp_batch``: exact signed margin via an LP (HiGHS).
+* ``point_in_prism_residual``: constraint violation of a world point.
+* ``ref_point_in_polygon``, ``ref_polygon_distance``,
+  ``ref_halfline_distance``, ``ref_strip_distance``: brute-force 2D
+  references for the planar sub-problems.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.optimize import linprog
+
+__all__ = [
+    "polygon_ccw",
+    "polygon_halfplanes",
+    "margin_lp",
+    "margin_lp_batch",
+    "point_in_prism_residual",
+    "ref_point_in_polygon",
+    "ref_polygon_distance",
+    "ref_halfline_distance",
+    "ref_strip_distance",
+]
+
+# HiGHS rejects feasibility tolerances below 1e-10 ("Invalid option value").
+_HIGHS_OPTIONS = {
+    "primal_feasibility_tolerance": 1e-10,
+    "dual_feasibility_tolerance": 1e-10,
+}
+
+
+# ---------------------------------------------------------------------------
+# polygon helpers
+# ---------------------------------------------------------------------------
+
+
+def _signed_area(poly: np.ndarray) -> float:
+    x, y = poly[:, 0], poly[:, 1]
+    return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
+
+
+def polygon_ccw(xy) -> np.ndarray:
+    """Return the polygon as a float (n, 2) array in CCW order.
+
+    Consecutive duplicate vertices (including last == first) are dropped.
+    Raises ValueError for fewer than 3 distinct vertices or zero area.
+    """
+    poly = np.asarray(xy, dtype=float).reshape(-1, 2)
+    keep = [0]
+    for i in range(1, len(poly)):
+        if np.any(poly[i] != poly[keep[-1]]):
+            keep.append(i)
+    poly = poly[keep]
+    if len(poly) > 1 and np.all(poly[0] == poly[-1]):
+        poly = poly[:-1]
+    if len(poly) < 3:
+        raise ValueError("polygon needs at least 3 distinct vertices")
+    area = _signed_area(poly)
+    if area == 0.0:
+        raise ValueError("polygon has zero area")
+    if area < 0.0:
+        poly = poly[::-1].copy()
+    return poly
+
+
+def polygon_halfplanes(xy):
+    """Unit outward edge normals ``n`` (m, 2) and offsets ``h`` (m,) of a polygon.
+
+    The polygon is {q : n_i . q <= h_i for all i}.  Edges shorter than
+    1e-14 * (polygon scale) are skipped.
+    """
+    poly = polygon_ccw(xy)
+    e = np.roll(poly, -1, axis=0) - poly
+    length = np.hypot(e[:, 0], e[:, 1])
+    scale = max(float(np.max(np.abs(poly))), 1e-300)
+    ok = length > 1e-14 * scale
+    n = np.stack([e[ok, 1], -e[ok, 0]], axis=1) / length[ok, None]
+    h = np.einsum("ij,ij->i", n, poly[ok])
+    return n, h
+
+
+def _max_radius(xy) -> float:
+    poly = np.asarray(xy, dtype=float).reshape(-1, 2)
+    return float(np.max(np.hypot(poly[:, 0], poly[:, 1])))
+
+
+# ---------------------------------------------------------------------------
+# 3D: signed margin by linear programming
+# ---------------------------------------------------------------------------
+
+
+def _body_rows(xy, p, R, length=None):
+    """Rows (A, b) of  A @ [x, delta] <= b  for one body, unit normals.
+
+    ``p``/``R`` are already expressed in the LP's working frame and scaled.
+    """
+    n2, h = polygon_halfplanes(xy)
+    R = np.asarray(R, dtype=float)
+    p = np.asarray(p, dtype=float)
+    rows, rhs = [], []
+    # side faces: n_w . (x - p) <= h - delta
+    n_w = n2 @ R[:, :2].T  # (m, 3) = R @ [n, 0]
+    n_w /= np.linalg.norm(n_w, axis=1, keepdims=True)
+    for ni, hi in zip(n_w, h):
+        rows.append([ni[0], ni[1], ni[2], 1.0])
+        rhs.append(hi + ni @ p)
+    # end face: d . (x - p) >= delta   <=>   -d . x + delta <= -d . p
+    d = R[:, 2] / np.linalg.norm(R[:, 2])
+    rows.append([-d[0], -d[1], -d[2], 1.0])
+    rhs.append(-(d @ p))
+    if length is not None:
+        # optional far cap (finite prism of the given length):
+        # d . (x - p) <= length - delta
+        rows.append([d[0], d[1], d[2], 1.0])
+        rhs.append(length + d @ p)
+    return rows, rhs
+
+
+def margin_lp(xy_a, pos_a, rot_a, xy_b, pos_b, rot_b, *, length_a=None,
+              length_b=None) -> float:
+    """Exact signed margin between two semi-infinite prisms.
+
+    delta* = max_{x in R^3, delta} delta  subject to every half-space of
+    both bodies holding with slack >= delta, each written with a unit normal:
+
+        end face   : (x - p) . d      >= delta
+        side face i: n_i . (x - p)    <= h_i - delta
+
+    so delta is in length units.  delta* >= 0 iff the closed bodies
+    intersect; if delta* < 0 the Euclidean gap g satisfies g >= 2 |delta*|
+    (the midpoint of a closest pair violates no constraint by more than g/2).
+    For two parallel slabs / half-spaces the bound is tight (g = -2 delta*).
+
+    ``length_a`` / ``length_b`` (keyword-only, optional) add a far cap
+    ``(x - p) . d <= length - delta``, i.e. the margin of FINITE prisms of
+    that length; used to compare against finite stand-ins (python-fcl).
+
+    The LP is solved in a frame centred at (p_a + p_b) / 2, rotated into
+    a's frame, with lengths divided by the larger polygon radius; the
+    result is returned in the input's length units.  delta is bounded above
+    by 1e3 (scaled units; it is naturally bounded by the polygons' inradii).
+    Raises RuntimeError if HiGHS does not report an optimal solution.
+    """
+    pos_a = np.asarray(pos_a, dtype=float).reshape(3)
+    pos_b = np.asarray(pos_b, dtype=float).reshape(3)
+    rot_a = np.asarray(rot_a, dtype=float).reshape(3, 3)
+    rot_b = np.asarray(rot_b, dtype=float).reshape(3, 3)
+    scale = max(_max_radius(xy_a), _max_radius(xy_b), 1e-300)
+
+    origin = 0.5 * (pos_a + pos_b)
+    Q = rot_a.T  # world -> a-frame rotation (exact for orthonormal rot_a)
+    xa = np.asarray(xy_a, dtype=float) / scale
+    xb = np.asarray(xy_b, dtype=float) / scale
+    pa = Q @ (pos_a - origin) / scale
+    pb = Q @ (pos_b - origin) / scale
+    Ra = Q @ rot_a
+    Rb = Q @ rot_b
+    la = None if length_a is None else float(length_a) / scale
+    lb = None if length_b is None else float(length_b) / scale
+
+    rows_a, rhs_a = _body_rows(xa, pa, Ra, la)
+    rows_b, rhs_b = _body_rows(xb, pb, Rb, lb)
+    A = np.array(rows_a + rows_b, dtype=float)
+    b = np.array(rhs_a + rhs_b, dtype=float)
+    c = np.array([0.0, 0.0, 0.0, -1.0])
+    bounds = [(None, None)] * 3 + [(None, 1e3)]
+    res = linprog(c, A_ub=A, b_ub=b, bounds=bounds, method="highs",
+                  options=_HIGHS_OPTIONS)
+    if res.status != 0:
+        raise RuntimeError(f"margin_lp: HiGHS status {res.status}: {res.message}")
+    return float(res.x[3]) * scale
+
+
+def margin_lp_batch(xy_a, pos_a, rot_a, xy_b, pos_b, rot_b, *, length_a=None,
+                    length_b=None) -> np.ndarray:
+    """``margin_lp`` over N pose pairs -> (N,) float array.
+
+    ``xy_a`` / ``xy_b``: one (n, 2) polygon shared by all pairs, or a list
+    (length N) of per-pair polygons.  ``pos_*``: (N, 3), ``rot_*``: (N, 3, 3).
+    ``length_*``: None, a scalar, or an (N,) array.
+    """
+    pos_a = np.asarray(pos_a, dtype=float).reshape(-1, 3)
+    pos_b = np.asarray(pos_b, dtype=float).reshape(-1, 3)
+    rot_a = np.asarray(rot_a, dtype=float).reshape(-1, 3, 3)
+    rot_b = np.asarray(rot_b, dtype=float).reshape(-1, 3, 3)
+    N = len(pos_a)
+    if not (len(pos_b) == len(rot_a) == len(rot_b) == N):
+        raise ValueError("pos_a, rot_a, pos_b, rot_b must have the same length N")
+
+    def per_pair_poly(xy):
+        if isinstance(xy, (list, tuple)) and len(xy) == N and np.ndim(xy[0]) == 2:
+            return list(xy)
+        return [xy] * N
+
+    def per_pair_len(L):
+        if L is None or np.ndim(L) == 0:
+            return [L] * N
+        return list(np.asarray(L, dtype=float).reshape(N))
+
+    pa_list, pb_list = per_pair_poly(xy_a), per_pair_poly(xy_b)
+    la_list, lb_list = per_pair_len(length_a), per_pair_len(length_b)
+    out = np.empty(N)
+    for k in range(N):
+        out[k] = margin_lp(pa_list[k], pos_a[k], rot_a[k], pb_list[k], pos_b[k],
+                           rot_b[k], length_a=la_list[k], length_b=lb_list[k])
+    return out
+
+
+def point_in_prism_residual(xy, pos, rot, x) -> float:
+    """Max constraint violation of world point ``x`` for one semi-infinite prism.
+
+    ``max(-t, max_i(n_i . q - h_i))`` where ``[q, t] = R^T (x - p)`` and the
+    n_i are unit outward edge normals: <= 0 inside/on the body, > 0 outside,
+    in length units (it is a lower bound on the Euclidean distance to the
+    body, exact when a single face is violated).
+    """
+    pos = np.asarray(pos, dtype=float).reshape(3)
+    rot = np.asarray(rot, dtype=float).reshape(3, 3)
+    local = rot.T @ (np.asarray(x, dtype=float).reshape(3) - pos)
+    n, h = polygon_halfplanes(xy)
+    side = n @ local[:2] - h
+    return float(max(-local[2], np.max(side)))
+
+
+# ---------------------------------------------------------------------------
+# 2D brute-force references
+# ---------------------------------------------------------------------------
+
+
+def _cross(o, a, b) -> float:
+    return float((a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]))
+
+
+def _hull(points) -> np.ndarray:
+    """Convex hull (Andrew's monotone chain), CCW, collinear points dropped.
+
+    Returns 1 vertex for a point set that is a single point, 2 for a
+    segment, >= 3 otherwise.
+    """
+    pts = np.unique(np.asarray(points, dtype=float).reshape(-1, 2), axis=0)
+    if len(pts) <= 2:
+        return pts
+    pts = [tuple(p) for p in pts]  # np.unique sorted them lexicographically
+    lower, upper = [], []
+    for p in pts:
+        while len(lower) >= 2 and _cross(lower[-2], lower[-1], p) <= 0.0:
+            lower.pop()
+        lower.append(p)
+    for p in reversed(pts):
+        while len(upper) >= 2 and _cross(upper[-2], upper[-1], p) <= 0.0:
+            upper.pop()
+        upper.append(p)
+    hull = lower[:-1] + upper[:-1]
+    return np.array(hull, dtype=float)
+
+
+def _edges(vertices: np.ndarray):
+    """Edges of a convex point/segment/polygon given by its hull vertices."""
+    k = len(vertices)
+    if k == 1:
+        return [(vertices[0], vertices[0])]
+    if k == 2:
+        return [(vertices[0], vertices[1])]
+    return [(vertices[i], vertices[(i + 1) % k]) for i in range(k)]
+
+
+def _point_segment_distance(x, a, b) -> float:
+    x, a, b = (np.asarray(v, dtype=float) for v in (x, a, b))
+    ab = b - a
+    L2 = float(ab @ ab)
+    if L2 == 0.0:
+        return float(np.hypot(*(x - a)))
+    t = min(1.0, max(0.0, float((x - a) @ ab) / L2))
+    return float(np.hypot(*(x - (a + t * ab))))
+
+
+def _on_segment(a, b, x) -> bool:
+    """x (known collinear with a-b) lies within the bounding box of a-b."""
+    return (min(a[0], b[0]) <= x[0] <= max(a[0], b[0])
+            and min(a[1], b[1]) <= x[1] <= max(a[1], b[1]))
+
+
+def _segments_intersect(a, b, c, d) -> bool:
+    """Closed segments [a, b] and [c, d] share a point (exact orientation tests)."""
+    o1 = np.sign(_cross(a, b, c))
+    o2 = np.sign(_cross(a, b, d))
+    o3 = np.sign(_cross(c, d, a))
+    o4 = np.sign(_cross(c, d, b))
+    if o1 * o2 < 0 and o3 * o4 < 0:
+        return True
+    if o1 == 0 and _on_segment(a, b, c):
+        return True
+    if o2 == 0 and _on_segment(a, b, d):
+        return True
+    if o3 == 0 and _on_segment(c, d, a):
+        return True
+    if o4 == 0 and _on_segment(c, d, b):
+        return True
+    return False
+
+
+def _inside_convex_ccw(poly_ccw: np.ndarray, x) -> bool:
+    """Exact closed containment test in a CCW convex polygon (>= 3 vertices)."""
+    k = len(poly_ccw)
+    return all(_cross(poly_ccw[i], poly_ccw[(i + 1) % k], x) >= 0.0 for i in range(k))
+
+
+def ref_point_in_polygon(poly, x, tol=0.0) -> bool:
+    """Is point ``x`` in convex polygon ``poly`` (either orientation)?
+
+    Computes the signed distance of ``x`` to every edge LINE (positive
+    outside, CCW-normalised) and returns ``max <= tol``.  Note this is the
+    half-plane slack test: near a sharp corner a point up to
+    ``tol / sin(half corner angle)`` from the polygon is accepted.
+    """
+    n, h = polygon_halfplanes(poly)
+    x = np.asarray(x, dtype=float).reshape(2)
+    return bool(np.max(n @ x - h) <= tol)
+
+
+def ref_polygon_distance(poly, other_points) -> float:
+    """Euclidean distance between convex polygon ``poly`` and conv(other_points).
+
+    ``other_points`` is (k, 2); k = 1 is a point, k = 2 a segment, more a
+    convex hull (computed here).  Exact brute force: 0 if any vertex of one
+    lies in the other or any edge pair intersects, otherwise the minimum of
+    all vertex-to-edge distances in both directions.  O(n k).
+    """
+    A = polygon_ccw(poly)
+    B = _hull(other_points)
+    if len(B) == 0:
+        raise ValueError("other_points is empty")
+    for v in B:
+        if _inside_convex_ccw(A, v):
+            return 0.0
+    if len(B) >= 3:
+        for v in A:
+            if _inside_convex_ccw(B, v):
+                return 0.0
+    edges_a, edges_b = _edges(A), _edges(B)
+    for (a0, a1) in edges_a:
+        for (b0, b1) in edges_b:
+            if _segments_intersect(a0, a1, b0, b1):
+                return 0.0
+    best = np.inf
+    for v in A:
+        for (b0, b1) in edges_b:
+            best = min(best, _point_segment_distance(v, b0, b1))
+    for v in B:
+        for (a0, a1) in edges_a:
+            best = min(best, _point_segment_distance(v, a0, a1))
+    return float(best)
+
+
+def _truncation_length(poly, base_points, d) -> float:
+    """Ray parameter T beyond which no distance minimiser need lie.
+
+    Let c be the vertex mean of the polygon (inside it, convexity) and
+    R = max |v - c|.  For a shape S = {b + t d : b in B, t >= 0} with B
+    convex, a minimising pair (x* = b* + t* d, q*) either has t* = 0 or,
+    by optimality in t, (x* - q*) . d = 0, i.e. t* |d| = (q* - b*) . d/|d|
+    <= |q* - b*| <= R + max_b |b - c|.  Truncating at
+    T = (max_b |b - c| + R + 1) / |d| therefore keeps a minimiser.
+    """
+    P = np.asarray(poly, dtype=float).reshape(-1, 2)
+    c = P.mean(axis=0)
+    R = float(np.max(np.hypot(*(P - c).T)))
+    reach = max(float(np.hypot(*(np.asarray(b, float) - c))) for b in base_points)
+    nd = float(np.hypot(*np.asarray(d, dtype=float)))
+    if nd == 0.0:
+        raise ValueError("direction d must be non-zero")
+    return (reach + R + 1.0) / nd
+
+
+def ref_halfline_distance(poly, p, d) -> float:
+    """Distance between convex polygon ``poly`` and the ray {p + t d, t >= 0}."""
+    p = np.asarray(p, dtype=float).reshape(2)
+    d = np.asarray(d, dtype=float).reshape(2)
+    T = _truncation_length(poly, [p], d)
+    return ref_polygon_distance(poly, np.array([p, p + T * d]))
+
+
+def ref_strip_distance(poly, p1, p2, d) -> float:
+    """Distance between ``poly`` and {p1 + s (p2 - p1) + t d : s in [0,1], t >= 0}."""
+    p1 = np.asarray(p1, dtype=float).reshape(2)
+    p2 = np.asarray(p2, dtype=float).reshape(2)
+    d = np.asarray(d, dtype=float).reshape(2)
+    T = _truncation_length(poly, [p1, p2], d)
+    return ref_polygon_distance(poly, np.array([p1, p2, p1 + T * d, p2 + T * d]))
