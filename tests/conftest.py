@@ -1,0 +1,349 @@
+"""Shared, seeded generators for the prismbatch test-suite.
+
+* ``tests/`` is put on ``sys.path`` so that test modules can ``from reference
+  import ...`` and ``from conftest import ...`` whatever the import mode.
+* Random convex polygons: irregular ones (random polar angles and radii on a
+  random ellipse, then the convex hull via ``scipy.spatial.ConvexHull``) and
+  regular n-gons, with random size, phase and an offset of the polygon from
+  the local origin (the origin need not lie inside the polygon).
+* Random rotations (``scipy.spatial.transform.Rotation.random`` with a seed).
+* Pose sets ``facing`` (a's axis down, b's axis up tilted by up to ~60 deg)
+  and ``free`` (uniform rotations, centres in a box of ~2.5 radii).
+* ``pair_tolerance``: the package's binding pair tolerance
+  ``atol + rtol * (R_a + R_b + |c_b - c_a|)`` computed independently.
+
+Everything is a plain function of a ``numpy.random.Generator`` so that the
+test modules can build their data deterministically at import/collection
+time or inside fixtures.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from dataclasses import dataclass, field
+
+import numpy as np
+import pytest
+from scipy.spatial import ConvexHull
+from scipy.spatial.transform import Rotation
+
+TESTS_DIR = os.path.dirname(os.path.abspath(__file__))
+if TESTS_DIR not in sys.path:
+    sys.path.insert(0, TESTS_DIR)
+
+from reference import margin_lp  # noqa: E402
+
+#: a's rotation in the ``facing`` pose set: local axes x, -y, -z (axis down).
+R_DOWN = np.diag([1.0, -1.0, -1.0])
+
+#: Vertex counts that must always be represented among large polygons.
+LARGE_COUNTS = (360, 1000, 3600)
+
+
+# ---------------------------------------------------------------------------
+# polygons
+# ---------------------------------------------------------------------------
+
+
+def _ccw(xy):
+    x, y = xy[:, 0], xy[:, 1]
+    area2 = np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y)
+    return xy if area2 > 0 else xy[::-1].copy()
+
+
+def regular_polygon(n, radius=1.0, phase=0.0, centre=(0.0, 0.0)):
+    """Regular n-gon, CCW, circumradius ``radius``."""
+    t = phase + 2.0 * np.pi * np.arange(n) / n
+    return np.column_stack([radius * np.cos(t), radius * np.sin(t)]) + np.asarray(centre, float)
+
+
+def irregular_polygon(rng, n, radius=1.0):
+    """Random convex polygon with at most ``n`` vertices (usually close to n).
+
+    ``n`` random polar angles on a random ellipse (aspect 0.25..1, random
+    orientation) with random radial shrink, then the convex hull.  The radial
+    noise is large for small ``n`` (very irregular, possibly skinny shapes)
+    and tiny for large ``n`` so that most of the points survive the hull.
+    """
+    for _ in range(100):
+        m = max(int(n), 3)
+        ang = np.sort(rng.uniform(0.0, 2.0 * np.pi, m))
+        aspect = rng.uniform(0.25, 1.0)
+        noise = 0.35 if m <= 12 else min(0.35, 3.0 / m**2)
+        rad = 1.0 - noise * rng.uniform(0.0, 1.0, m)
+        pts = np.column_stack([rad * np.cos(ang), aspect * rad * np.sin(ang)])
+        th = rng.uniform(0.0, 2.0 * np.pi)
+        c, s = np.cos(th), np.sin(th)
+        pts = pts @ np.array([[c, s], [-s, c]])
+        try:
+            hull = ConvexHull(pts)
+        except Exception:  # degenerate draw (qhull error): try again
+            continue
+        poly = pts[hull.vertices]  # CCW for 2-D input
+        # Reject degenerate slivers: the package validates areas and edges.
+        e = np.roll(poly, -1, axis=0) - poly
+        if len(poly) < 3 or hull.volume < 1e-3 or np.min(np.hypot(*e.T)) < 1e-9:
+            continue
+        poly = _ccw(poly)
+        r = np.max(np.hypot(*(poly - poly.mean(axis=0)).T))
+        return poly * (radius / r)
+    raise RuntimeError("could not draw a random convex polygon")
+
+
+def random_polygon(rng, n, *, regular=None, radius=None, offset=0.3):
+    """Random convex polygon, regular or irregular, CCW.
+
+    ``radius`` defaults to a random value in [0.5, 2]; the polygon is shifted
+    from the local origin by up to ``offset * radius``.
+    """
+    if regular is None:
+        regular = bool(rng.random() < 0.35)
+    if radius is None:
+        radius = float(rng.uniform(0.5, 2.0))
+    shift = rng.uniform(-offset, offset, 2) * radius
+    if regular:
+        return regular_polygon(n, radius, rng.uniform(0, 2 * np.pi), shift)
+    return irregular_polygon(rng, n, radius) + shift
+
+
+def sample_vertex_count(rng, family):
+    """Vertex count for a polygon family.
+
+    ``small``: 3..12 uniform; ``medium``: log-uniform 13..200; ``large``:
+    one of 360/1000/3600 half of the time, otherwise log-uniform 201..3600;
+    ``mixed``: skewed toward small (60% small, 35% medium, 5% large);
+    ``smallmed``: 65% small, 35% medium.
+    """
+    if family == "mixed":
+        u = rng.random()
+        family = "small" if u < 0.6 else ("medium" if u < 0.95 else "large")
+    elif family == "smallmed":
+        family = "small" if rng.random() < 0.65 else "medium"
+    if family == "small":
+        return int(rng.integers(3, 13))
+    if family == "medium":
+        return int(np.exp(rng.uniform(np.log(13), np.log(200.999))))
+    if family == "large":
+        if rng.random() < 0.5:
+            return int(rng.choice(LARGE_COUNTS))
+        return int(np.exp(rng.uniform(np.log(201), np.log(3600.999))))
+    raise ValueError(family)
+
+
+def polygon_pairs(rng, n_pairs, family, *, regular=None):
+    """Lists (polys_a, polys_b) of per-pair polygons for a family.
+
+    For ``large`` only one of the two polygons of a pair is large (the other
+    is ``smallmed``), which keeps the LP reference affordable while exercising
+    the large-polygon code paths on both sides.
+    """
+    pa, pb = [], []
+    for k in range(n_pairs):
+        fa = fb = family
+        if family == "large":
+            if k % 2 == 0:
+                fb = "smallmed"
+            else:
+                fa = "smallmed"
+        pa.append(random_polygon(rng, sample_vertex_count(rng, fa), regular=regular))
+        pb.append(random_polygon(rng, sample_vertex_count(rng, fb), regular=regular))
+    return pa, pb
+
+
+# ---------------------------------------------------------------------------
+# rotations and poses
+# ---------------------------------------------------------------------------
+
+
+def random_rotations(rng, n):
+    """(n, 3, 3) uniformly random rotation matrices (seeded)."""
+    return Rotation.random(n, random_state=rng).as_matrix().reshape(n, 3, 3)
+
+
+def rot_z(theta):
+    c, s = np.cos(theta), np.sin(theta)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def polygon_centre(xy):
+    """Area centroid of a convex polygon (independent of the package)."""
+    xy = _ccw(np.asarray(xy, float))
+    x0 = xy.mean(axis=0)
+    v = xy - x0
+    vn = np.roll(v, -1, axis=0)
+    cr = v[:, 0] * vn[:, 1] - vn[:, 0] * v[:, 1]
+    a = cr.sum() / 2.0
+    return np.array([((v[:, 0] + vn[:, 0]) * cr).sum(), ((v[:, 1] + vn[:, 1]) * cr).sum()]) / (6 * a) + x0
+
+
+def polygon_radius(xy, centre=None):
+    xy = np.asarray(xy, float)
+    c = polygon_centre(xy) if centre is None else centre
+    return float(np.max(np.hypot(*(xy - c).T)))
+
+
+def _world_centres(polys, pos, rot):
+    c = np.array([polygon_centre(p) for p in polys])
+    return pos + np.einsum("nij,nj->ni", rot[:, :, :2], c)
+
+
+def _place(polys, pos, rot, target):
+    """Shift ``pos`` so that the end-face centroids land on ``target``."""
+    return pos + (target - _world_centres(polys, pos, rot))
+
+
+def facing_poses(rng, polys_a, polys_b, *, max_tilt_deg=60.0):
+    """Facing pose set.
+
+    a: axis down (``rot_a = diag(1, -1, -1)``) at a random world position.
+    b: random spin about its axis, then its axis (+z) tilted by up to
+    ``max_tilt_deg`` about a random horizontal axis; its end-face centroid is
+    within ~1.5 (R_a + R_b) of a's horizontally and at a height in
+    [-1.5 R, 1 R] relative to a's end face (R = max(R_a, R_b)).
+    Returns pos_a, rot_a, pos_b, rot_b with shapes (N, 3) and (N, 3, 3).
+    """
+    n = len(polys_a)
+    ra = np.array([polygon_radius(p) for p in polys_a])
+    rb = np.array([polygon_radius(p) for p in polys_b])
+    rot_a = np.repeat(R_DOWN[None], n, axis=0)
+    base = rng.uniform(-5, 5, (n, 3))
+    pos_a = _place(polys_a, np.zeros((n, 3)), rot_a, base)
+    spin = Rotation.from_euler("z", rng.uniform(0, 2 * np.pi, (n, 1)))
+    ax = rng.uniform(0, 2 * np.pi, n)
+    tilt = np.deg2rad(max_tilt_deg) * np.sqrt(rng.uniform(0, 1, n))
+    axis = np.column_stack([np.cos(ax), np.sin(ax), np.zeros(n)])
+    rot_b = (Rotation.from_rotvec(axis * tilt[:, None]) * spin).as_matrix()
+    R = np.maximum(ra, rb)
+    rho = 1.5 * (ra + rb) * np.sqrt(rng.uniform(0, 1, n))
+    phi = rng.uniform(0, 2 * np.pi, n)
+    dz = rng.uniform(-1.5, 1.0, n) * R
+    target = base + np.column_stack([rho * np.cos(phi), rho * np.sin(phi), dz])
+    pos_b = _place(polys_b, np.zeros((n, 3)), rot_b, target)
+    return pos_a, rot_a, pos_b, rot_b
+
+
+def free_poses(rng, polys_a, polys_b, *, half_width=1.25):
+    """Free pose set: uniform random rotations, centroid offsets uniform in a
+    box of half-width ``half_width * (R_a + R_b)`` (about 2.5 radii wide)."""
+    n = len(polys_a)
+    ra = np.array([polygon_radius(p) for p in polys_a])
+    rb = np.array([polygon_radius(p) for p in polys_b])
+    rot_a = random_rotations(rng, n)
+    rot_b = random_rotations(rng, n)
+    base = rng.uniform(-5, 5, (n, 3))
+    pos_a = _place(polys_a, np.zeros((n, 3)), rot_a, base)
+    off = rng.uniform(-1, 1, (n, 3)) * (half_width * (ra + rb))[:, None]
+    pos_b = _place(polys_b, np.zeros((n, 3)), rot_b, base + off)
+    return pos_a, rot_a, pos_b, rot_b
+
+
+POSE_SETS = {"facing": facing_poses, "free": free_poses}
+
+
+# ---------------------------------------------------------------------------
+# tolerances and reference margins
+# ---------------------------------------------------------------------------
+
+
+def pair_scale(polys_a, pos_a, rot_a, polys_b, pos_b, rot_b):
+    """S = R_a + R_b + |c_b - c_a| per pair (world end-face centroids)."""
+    ra = np.array([polygon_radius(p) for p in polys_a])
+    rb = np.array([polygon_radius(p) for p in polys_b])
+    ca = _world_centres(polys_a, np.asarray(pos_a, float).reshape(-1, 3), np.asarray(rot_a, float).reshape(-1, 3, 3))
+    cb = _world_centres(polys_b, np.asarray(pos_b, float).reshape(-1, 3), np.asarray(rot_b, float).reshape(-1, 3, 3))
+    return ra + rb + np.linalg.norm(cb - ca, axis=1)
+
+
+def pair_tolerance(polys_a, pos_a, rot_a, polys_b, pos_b, rot_b, *, rtol=1e-9, atol=0.0):
+    """The binding pair tolerance ``atol + rtol * S``."""
+    return atol + rtol * pair_scale(polys_a, pos_a, rot_a, polys_b, pos_b, rot_b)
+
+
+def margins(polys_a, pos_a, rot_a, polys_b, pos_b, rot_b):
+    """LP margins delta* (N,) for per-pair polygons."""
+    return np.array([margin_lp(polys_a[k], pos_a[k], rot_a[k], polys_b[k], pos_b[k], rot_b[k])
+                     for k in range(len(polys_a))])
+
+
+@dataclass
+class PairData:
+    """A batch of pose pairs with per-pair polygons and (optionally) margins."""
+
+    polys_a: list
+    polys_b: list
+    pos_a: np.ndarray
+    rot_a: np.ndarray
+    pos_b: np.ndarray
+    rot_b: np.ndarray
+    kind: np.ndarray = field(default=None)  # "facing"/"free" per pair
+    delta: np.ndarray = field(default=None)  # LP margins
+    scale: np.ndarray = field(default=None)  # S per pair
+
+    def __len__(self):
+        return len(self.polys_a)
+
+    def subset(self, idx):
+        idx = np.asarray(idx)
+        if idx.dtype == bool:
+            idx = np.flatnonzero(idx)
+        pick = lambda v: None if v is None else v[idx]  # noqa: E731
+        return PairData([self.polys_a[i] for i in idx], [self.polys_b[i] for i in idx],
+                        self.pos_a[idx], self.rot_a[idx], self.pos_b[idx], self.rot_b[idx],
+                        pick(self.kind), pick(self.delta), pick(self.scale))
+
+    def args(self):
+        return self.pos_a, self.rot_a, self.pos_b, self.rot_b
+
+
+def make_pairs(rng, n_pairs, pose_set, family="mixed", *, regular=None, with_margin=False):
+    """Random PairData for one pose set (``facing``/``free``) and family."""
+    pa, pb = polygon_pairs(rng, n_pairs, family, regular=regular)
+    poses = POSE_SETS[pose_set](rng, pa, pb)
+    d = PairData(pa, pb, *poses, kind=np.array([pose_set] * n_pairs))
+    d.scale = pair_scale(pa, *poses[:2], pb, *poses[2:])
+    if with_margin:
+        d.delta = margins(pa, *poses[:2], pb, *poses[2:])
+    return d
+
+
+def concat_pairs(*parts):
+    cat = lambda name: np.concatenate([getattr(p, name) for p in parts])  # noqa: E731
+    out = PairData(sum((p.polys_a for p in parts), []), sum((p.polys_b for p in parts), []),
+                   cat("pos_a"), cat("rot_a"), cat("pos_b"), cat("rot_b"), cat("kind"), None, cat("scale"))
+    if all(p.delta is not None for p in parts):
+        out.delta = cat("delta")
+    return out
+
+
+# ---------------------------------------------------------------------------
+# fixtures
+# ---------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="session")
+def pairs_with_margins():
+    """~1600 facing + free pairs (small/medium polygons) with LP margins.
+
+    Shared by the invariance tests (which need pairs away from the touching
+    band) so the LP reference is run once per session.
+    """
+    rng = np.random.default_rng(20240611)
+    parts = [make_pairs(rng, 800, "facing", "smallmed", with_margin=True),
+             make_pairs(rng, 800, "free", "smallmed", with_margin=True)]
+    return concat_pairs(*parts)
+
+
+@pytest.fixture
+def rng(request):
+    """A generator seeded from the test's node id (stable across runs)."""
+    seed = abs(hash_str(request.node.nodeid)) % (2**32)
+    return np.random.default_rng(seed)
+
+
+def hash_str(s):
+    """Deterministic string hash (Python's ``hash`` is salted per process)."""
+    h = 1469598103934665603
+    for ch in s.encode():
+        h = ((h ^ ch) * 1099511628211) % (1 << 64)
+    return h

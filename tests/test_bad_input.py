@@ -1,0 +1,135 @@
+"""Every bad input raises a clear error that names what is wrong and where."""
+
+import numpy as np
+import pytest
+
+import prismbatch as pb
+
+SQ = [[0, 0], [1, 0], [1, 1], [0, 1]]
+A = pb.Prism.regular(5, 2.0)
+B = pb.Prism.regular(6, 2.5)
+I3 = np.eye(3)
+
+
+@pytest.mark.parametrize(
+    "xy, exc, match",
+    [
+        ([[0, 0], [2, 0], [1, 0.2], [2, 2], [0, 2]], ValueError, r"not convex at vertex 2"),
+        # Pentagram: every turn is left, but the outline winds twice.
+        ([[np.cos(a), np.sin(a)] for a in np.arange(5) * 4 * np.pi / 5], ValueError, "self-intersecting"),
+        ([[0, 0], [1, 0]], ValueError, "at least 3 vertices"),
+        ([[0, 0], [1, 1], [2, 2]], ValueError, "zero area"),
+        ([[0, 0], [1, 0], [1, 0], [1, 1]], ValueError, r"vertex 2 repeats vertex 1"),
+        ([[0, 0], [1, 0], [np.nan, 1]], ValueError, r"vertex 2 is not finite"),
+        ([[0, 0], [1, 0], [np.inf, 1]], ValueError, r"vertex 2 is not finite"),
+        ([[0, 0, 0], [1, 0, 0], [0, 1, 0]], ValueError, r"shape \(n, 2\)"),
+        ([["a", "b"], ["c", "d"], ["e", "f"]], TypeError, "real numbers"),
+        ([[0, 0], [0, 0], [0, 0]], ValueError, "coincide"),
+    ],
+)
+def test_bad_polygon(xy, exc, match):
+    with pytest.raises(exc, match=match):
+        pb.Prism(xy)
+
+
+def test_bad_polygon_in_set_names_its_index():
+    with pytest.raises(ValueError, match=r"polygon 2: .*not convex"):
+        pb.PrismSet([SQ, SQ, [[0, 0], [2, 0], [1, 0.2], [2, 2], [0, 2]]])
+
+
+def test_clockwise_is_the_only_repair():
+    cw = np.array(SQ[::-1], float)
+    p = pb.Prism(cw)
+    np.testing.assert_array_equal(p.xy, cw[::-1])
+
+
+def test_regular_arguments():
+    with pytest.raises(ValueError, match="n must be >= 3"):
+        pb.Prism.regular(2, 1.0)
+    with pytest.raises(ValueError, match="radius"):
+        pb.Prism.regular(5, -1.0)
+
+
+def _call(**kw):
+    args = dict(pos_a=np.zeros(3), rot_a=I3, pos_b=np.zeros(3), rot_b=I3)
+    args.update(kw)
+    return pb.collide(A, B, args["pos_a"], args["rot_a"], args["pos_b"], args["rot_b"])
+
+
+@pytest.mark.parametrize(
+    "kw, match",
+    [
+        ({"pos_a": np.array([[0, 0, 0], [0, np.nan, 0]])}, r"pos_a\[1\].*non-finite"),
+        ({"pos_b": np.array([np.inf, 0, 0])}, r"pos_b.*non-finite"),
+        ({"rot_b": np.stack([I3, I3 * np.nan])}, r"rot_b\[1\].*non-finite"),
+        ({"rot_a": I3 * 1.001}, r"rot_a.*not orthonormal"),
+        ({"rot_b": np.stack([I3, I3, np.diag([1.0, 1.0, -1.0])])}, r"rot_b\[2\].*reflection"),
+        ({"pos_a": np.zeros((5, 3)), "pos_b": np.zeros((7, 3))}, r"batch sizes do not match: pos_a has 5.*pos_b has 7"),
+        ({"pos_a": np.zeros((3, 4))}, r"pos_a has shape \(3, 4\)"),
+        ({"rot_a": np.zeros((3, 5))}, r"rot_a has shape \(3, 5\)"),
+        ({"rot_a": np.array([1.0, 0, 0, 0])}, r"quat_order"),
+    ],
+)
+def test_bad_pose(kw, match):
+    with pytest.raises(ValueError, match=match):
+        _call(**kw)
+
+
+def test_bad_dtype_pose():
+    with pytest.raises(TypeError, match="dtype"):
+        _call(pos_a=np.array(["0", "0", "0"]))
+
+
+def test_prismset_size_must_match_batch():
+    s = pb.PrismSet([SQ, SQ, SQ])
+    with pytest.raises(ValueError, match=r"shape set has 3"):
+        pb.collide(s, B, np.zeros((4, 3)), I3, np.zeros(3), I3)
+    with pytest.raises(ValueError, match="different sizes"):
+        pb.collide(s, pb.PrismSet([SQ, SQ]), np.zeros(3), I3, np.zeros(3), I3)
+
+
+def test_bad_shape_argument_type():
+    with pytest.raises(TypeError, match="shape_a must be a prismbatch.Prism or PrismSet"):
+        pb.collide(SQ, B, np.zeros(3), I3, np.zeros(3), I3)
+
+
+def test_bad_tolerance_and_dtype():
+    with pytest.raises(ValueError, match="rtol and atol"):
+        pb.collide(A, B, np.zeros(3), I3, np.zeros(3), I3, rtol=-1.0)
+    with pytest.raises(TypeError, match="float64 or numpy.float32"):
+        pb.collide(A, B, np.zeros(3), I3, np.zeros(3), I3, dtype=np.int32)
+
+
+def test_missing_pose_b():
+    with pytest.raises(TypeError, match="pose for b"):
+        pb.collide(A, B, np.zeros(3), I3)
+
+
+def test_contact_not_requested_is_an_error_not_nan():
+    r = _call()
+    with pytest.raises(AttributeError, match="contact=True"):
+        r.contact  # noqa: B018
+
+
+def test_accepted_pose_forms_agree():
+    from scipy.spatial.transform import Rotation
+
+    rng = np.random.default_rng(3)
+    rot = Rotation.random(20, random_state=rng)
+    pos = rng.uniform(-3, 3, (20, 3))
+    ref = pb.collide(A, B, np.zeros(3), I3, pos, rot.as_matrix())
+    q_xyzw = rot.as_quat()
+    q_wxyz = np.roll(q_xyzw, 1, axis=1)
+    T = np.tile(np.eye(4), (20, 1, 1))
+    T[:, :3, :3] = rot.as_matrix()
+    T[:, :3, 3] = pos
+    forms = [
+        pb.collide(A, B, np.zeros(3), I3, pos, rot),
+        pb.collide(A, B, np.zeros(3), I3, pos, q_xyzw, quat_order="xyzw"),
+        pb.collide(A, B, np.zeros(3), I3, pos, q_wxyz, quat_order="wxyz"),
+        pb.collide(A, B, np.eye(4), None, T, None),
+    ]
+    assert ref.hit.any() and not ref.hit.all()
+    for r in forms:
+        np.testing.assert_array_equal(r.hit, ref.hit)
+        np.testing.assert_array_equal(r.case, ref.case)

@@ -1,0 +1,43 @@
+"""The prismbatch command: --help, demo output, errors."""
+
+import subprocess
+import sys
+
+import pytest
+
+from prismbatch.cli import main
+from prismbatch.demo import run_demo
+
+
+def test_help_lists_demo(capsys):
+    with pytest.raises(SystemExit) as e:
+        main(["--help"])
+    assert e.value.code == 0
+    assert "demo" in capsys.readouterr().out
+
+
+def test_console_script_help():
+    out = subprocess.run([sys.executable, "-m", "prismbatch.cli", "demo", "--help"], capture_output=True,
+                         text=True, check=True).stdout
+    assert "--pairs" in out and "--distribution" in out
+
+
+def test_demo_prints_throughput_and_cases(capsys):
+    assert main(["demo", "--pairs", "3000", "--vertices", "36", "--no-progress"]) == 0
+    out = capsys.readouterr().out
+    assert "throughput" in out and "M pairs/s" in out
+    assert "hits:" in out
+    assert "case  pairs" in out
+
+
+def test_demo_counts_are_consistent_and_reproducible():
+    r1 = run_demo(n_pairs=5000, n_vertices=36, distribution="free", seed=7, chunk=1500, progress=False)
+    r2 = run_demo(n_pairs=5000, n_vertices=36, distribution="free", seed=7, chunk=1500, progress=False)
+    assert sum(r1["case_counts"].values()) == 5000
+    assert 0 < r1["hits"] < 5000
+    assert r1["case_counts"] == r2["case_counts"] and r1["hits"] == r2["hits"]
+
+
+def test_demo_bad_argument_is_an_error_message(capsys):
+    assert main(["demo", "--pairs", "0", "--no-progress"]) == 2
+    assert "error" in capsys.readouterr().err
