@@ -14,8 +14,8 @@ from numba import njit, prange
 from ._projection import pair_test
 
 
-def _collide_loop(avx, avy, aeang, avang, ainv, aoff, arad, acen,
-                  bvx, bvy, beang, bvang, binv, boff, brad, bcen,
+def _collide_loop(avx, avy, aeang, aetab, avang, ainv, aoff, arad, acen,
+                  bvx, bvy, beang, betab, bvang, binv, boff, brad, bcen,
                   pos_a, rot_a, pos_b, rot_b, rtol, atol, want_contact,
                   hit_out, case_out, contact_out):
     n = hit_out.shape[0]
@@ -69,8 +69,8 @@ def _collide_loop(avx, avy, aeang, avang, ainv, aoff, arad, acen,
         sb = boff[kb]
         nb = boff[kb + 1] - sb
         hit, case, cx, cy, cz = pair_test(
-            avx, avy, aeang, avang, ainv, sa, na, ra,
-            bvx, bvy, beang, sb, nb, rb,
+            avx, avy, aeang, aetab, avang, ainv, sa, na, ra,
+            bvx, bvy, beang, betab, sb, nb, rb,
             px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22, tol)
         hit_out[i] = hit
         case_out[i] = case

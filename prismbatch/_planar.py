@@ -34,18 +34,72 @@ GJK_MAX_ITER = 160
 
 
 @njit(cache=True, inline="always")
-def extreme_vertex(vx, vy, eang, s, n, dx, dy):
-    """Local index of a vertex maximising ``(dx, dy) . v`` (binary search).
+def pseudo_angle(x, y):
+    """A strictly increasing stand-in for atan2(y, x), in [0, 4): cheaper than atan2.
+
+    1 per quarter turn (the "diamond angle"); (0, 0) maps to 0.
+    """
+    if y >= 0.0:
+        if x >= 0.0:
+            s = x + y
+            return y / s if s > 0.0 else 0.0
+        return 1.0 - x / (y - x)
+    if x < 0.0:
+        return 2.0 - y / (-x - y)
+    return 3.0 + x / (x - y)
+
+
+@njit(cache=True)
+def edge_search_tables(vx, vy, out_ang, out_tab):
+    """Unwrapped edge pseudo-angles and bucket table of one CCW polygon.
+
+    out_ang[k]: pseudo-angle of edge v_k -> v_{k+1}, unwrapped to increase.
+    out_tab[b]: number of edges whose angle offset from edge 0 is below
+    4 b / n (n buckets of equal pseudo-angle width), so the extreme-vertex
+    search only scans one bucket (O(1) for evenly spread edges).
+    """
+    n = vx.shape[0]
+    if n == 1:
+        out_ang[0] = 0.0
+        out_tab[0] = 0
+        return
+    wrap = 0.0
+    prev = 0.0
+    for k in range(n):
+        k1 = k + 1 if k + 1 < n else 0
+        a = pseudo_angle(vx[k1] - vx[k], vy[k1] - vy[k])
+        if k > 0 and a + wrap < prev - 1.0:
+            wrap += 4.0  # passed the +x direction: one full turn of pseudo-angle
+        # Nearly collinear edges may turn back by a rounding error: keep the
+        # sequence non-decreasing so the binary search stays valid.
+        prev = max(prev, a + wrap) if k > 0 else a
+        out_ang[k] = prev
+    j = 0
+    for b in range(n):
+        edge = 4.0 * b / n
+        while j < n and out_ang[j] - out_ang[0] < edge:
+            j += 1
+        out_tab[b] = j
+
+
+@njit(cache=True, inline="always")
+def extreme_vertex(vx, vy, eang, etab, s, n, dx, dy):
+    """Local index of a vertex maximising ``(dx, dy) . v``.
 
     Vertex k lies between edge k-1 and edge k; it is extreme for directions
-    whose angle + pi/2 lies in [eang[k-1], eang[k]].
+    whose angle + pi/2 lies between the angles of those edges. A bucket
+    lookup then a binary search inside the bucket (see edge_search_tables).
     """
     if n == 1:
         return 0
-    phi0 = eang[s]
-    target = phi0 + (math.atan2(dy, dx) + HALF_PI - phi0) % TWO_PI
-    lo = 0
-    hi = n
+    p0 = eang[s]
+    off = (pseudo_angle(-dy, dx) - p0) % 4.0  # angle + pi/2, relative to edge 0
+    target = p0 + off
+    b = int(off * n * 0.25)
+    if b >= n:
+        b = n - 1
+    lo = etab[s + b]
+    hi = etab[s + b + 1] if b + 1 < n else n
     while lo < hi:
         mid = (lo + hi) >> 1
         if eang[s + mid] < target:
@@ -138,14 +192,14 @@ SLAB_INSIDE, SLAB_LO, SLAB_HI = 0, 1, 2
 
 
 @njit(cache=True)
-def slab_support(vx, vy, eang, s, n, dx, dy, hx, hy, imin, imax, lo, hi):
+def slab_support(vx, vy, eang, etab, s, n, dx, dy, hx, hy, imin, imax, lo, hi):
     """Maximise d.q over {q in polygon : lo <= h.q <= hi} (assumed non-empty).
 
     If the unconstrained maximiser violates one side of the slab, the
     constrained maximum lies on that side's chord (an LP fact), found by
     binary search. Returns (u, v, flag) with flag SLAB_INSIDE/LO/HI.
     """
-    k = extreme_vertex(vx, vy, eang, s, n, dx, dy)
+    k = extreme_vertex(vx, vy, eang, etab, s, n, dx, dy)
     u = vx[s + k]
     v = vy[s + k]
     hq = hx * u + hy * v
@@ -164,7 +218,7 @@ def slab_support(vx, vy, eang, s, n, dx, dy, hx, hy, imin, imax, lo, hi):
 
 
 @njit(cache=True)
-def support_spec(vx, vy, eang, s, n, sp, dx, dy):
+def support_spec(vx, vy, eang, etab, s, n, sp, dx, dy):
     """Support point of the spec shape B in direction d.
 
     Returns (x, y, u, v, t): the 2-D point and its pre-image (q = (u, v), t).
@@ -185,10 +239,10 @@ def support_spec(vx, vy, eang, s, n, sp, dx, dy):
     imax = int(sp[SP_IMAX])
     tf = T if g > 0.0 else 0.0
     if c == 0.0:
-        u, v, _ = slab_support(vx, vy, eang, s, n, au, av, hx, hy, imin, imax, -tz - pz, math.inf)
+        u, v, _ = slab_support(vx, vy, eang, etab, s, n, au, av, hx, hy, imin, imax, -tz - pz, math.inf)
         t = tf
     else:
-        k = extreme_vertex(vx, vy, eang, s, n, au, av)
+        k = extreme_vertex(vx, vy, eang, etab, s, n, au, av)
         u = vx[s + k]
         v = vy[s + k]
         if pz + hx * u + hy * v + c * tf >= -tz:
@@ -206,7 +260,7 @@ def support_spec(vx, vy, eang, s, n, sp, dx, dy):
                 lo, hi, t_lo, t_hi = h0, ht, 0.0, T
             else:
                 lo, hi, t_lo, t_hi = ht, h0, T, 0.0
-            u, v, flag = slab_support(vx, vy, eang, s, n, du, dv, hx, hy, imin, imax, lo, hi)
+            u, v, flag = slab_support(vx, vy, eang, etab, s, n, du, dv, hx, hy, imin, imax, lo, hi)
             if flag == SLAB_LO:
                 t = t_lo
             elif flag == SLAB_HI:
@@ -251,7 +305,7 @@ def _mix(p, q, lam):
 
 
 @njit(cache=True)
-def gjk(avx, avy, aeang, sa, na, bvx, bvy, beang, sb, nb, sp, tol):
+def gjk(avx, avy, aeang, aetab, sa, na, bvx, bvy, beang, betab, sb, nb, sp, tol):
     """Is dist(polygon A, spec shape B) <= tol?  2-D GJK on O(log n) supports.
 
     Returns (hit, iterations, ax, ay, u, v, t): on a hit, (ax, ay) is a point
@@ -265,8 +319,8 @@ def gjk(avx, avy, aeang, sa, na, bvx, bvy, beang, sb, nb, sp, tol):
     if dx == 0.0 and dy == 0.0:
         dx = 1.0
     # Simplex entries: (wx, wy, ax, ay, u, v, t) with w = a - b.
-    ka = extreme_vertex(avx, avy, aeang, sa, na, dx, dy)
-    bx, by, bu, bv, bt = support_spec(bvx, bvy, beang, sb, nb, sp, -dx, -dy)
+    ka = extreme_vertex(avx, avy, aeang, aetab, sa, na, dx, dy)
+    bx, by, bu, bv, bt = support_spec(bvx, bvy, beang, betab, sb, nb, sp, -dx, -dy)
     p0 = (avx[sa + ka] - bx, avy[sa + ka] - by, avx[sa + ka], avy[sa + ka], bu, bv, bt)
     p1 = p0
     p2 = p0
@@ -282,8 +336,8 @@ def gjk(avx, avy, aeang, sa, na, bvx, bvy, beang, sb, nb, sp, tol):
         if vv >= last_vv:
             return False, it, 0.0, 0.0, 0.0, 0.0, 0.0  # no progress: at rounding level, |v| > tol
         last_vv = vv
-        ka = extreme_vertex(avx, avy, aeang, sa, na, -vx_, -vy_)
-        bx, by, bu, bv, bt = support_spec(bvx, bvy, beang, sb, nb, sp, vx_, vy_)
+        ka = extreme_vertex(avx, avy, aeang, aetab, sa, na, -vx_, -vy_)
+        bx, by, bu, bv, bt = support_spec(bvx, bvy, beang, betab, sb, nb, sp, vx_, vy_)
         ax = avx[sa + ka]
         ay = avy[sa + ka]
         pn = (ax - bx, ay - by, ax, ay, bu, bv, bt)

@@ -73,8 +73,8 @@ def _near_top_count(bvx, bvy, sb, nb, hx, hy, imax, zmax_h, tol):
 
 
 @njit(cache=True)
-def pair_test(avx, avy, aeang, avang, ainv, sa, na, ra,
-              bvx, bvy, beang, sb, nb, rb,
+def pair_test(avx, avy, aeang, aetab, avang, ainv, sa, na, ra,
+              bvx, bvy, beang, betab, sb, nb, rb,
               px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22, tol):
     """Collision test for one pair in a's centred frame.
 
@@ -85,7 +85,7 @@ def pair_test(avx, avy, aeang, avang, ainv, sa, na, ra,
     hx = r20
     hy = r21
     c = r22
-    imax = extreme_vertex(bvx, bvy, beang, sb, nb, hx, hy)
+    imax = extreme_vertex(bvx, bvy, beang, betab, sb, nb, hx, hy)
     top_u = bvx[sb + imax]
     top_v = bvy[sb + imax]
     top_h = hx * top_u + hy * top_v
@@ -145,9 +145,9 @@ def pair_test(avx, avy, aeang, avang, ainv, sa, na, ra,
             return True, case, ex, ey, 0.5 * (d3 + max(d3, 0.0))
 
     # --- exact planar test: GJK of P_a against the projection of b ---
-    imin = extreme_vertex(bvx, bvy, beang, sb, nb, -hx, -hy)
+    imin = extreme_vertex(bvx, bvy, beang, betab, sb, nb, -hx, -hy)
     sp = (px, py, r00, r01, r10, r11, r02, r12, hx, hy, pz, ceff, T, tz, float(imin), float(imax))
-    hit, _, ax, ay, u, v, t = gjk(avx, avy, aeang, sa, na, bvx, bvy, beang, sb, nb, sp, tol)
+    hit, _, ax, ay, u, v, t = gjk(avx, avy, aeang, aetab, sa, na, bvx, bvy, beang, betab, sb, nb, sp, tol)
     if not hit:
         return False, case, nan, nan, nan
     bx = px + r00 * u + r01 * v + r02 * t

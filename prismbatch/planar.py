@@ -18,7 +18,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ._planar import gjk, point_polygon_distance
+from ._planar import edge_search_tables, gjk, point_polygon_distance
 from .shapes import Prism, PrismSet
 
 __all__ = ["point_polygon", "segment_polygon", "halfline_polygon", "strip_polygon", "polygon_polygon"]
@@ -38,10 +38,10 @@ def _vec2(x, name):
 
 
 @njit(cache=True)
-def _gjk_generators(avx, avy, aeang, an, gx, gy, geang, gn, wx, wy, T, tol):
+def _gjk_generators(avx, avy, aeang, aetab, an, gx, gy, geang, getab, gn, wx, wy, T, tol):
     """GJK of polygon A (centred) vs conv(generators) + [0, T] w."""
     sp = (0.0, 0.0, 1.0, 0.0, 0.0, 1.0, wx, wy, 0.0, 0.0, 1.0, 0.0, T, 0.0, 0.0, 0.0)
-    return gjk(avx, avy, aeang, 0, an, gx, gy, geang, 0, gn, sp, tol)
+    return gjk(avx, avy, aeang, aetab, 0, an, gx, gy, geang, getab, 0, gn, sp, tol)
 
 
 def _run(prism, pset, pts, w, tol, poly_b=None):
@@ -51,17 +51,15 @@ def _run(prism, pset, pts, w, tol, poly_b=None):
         bset = poly_b
         gx = np.ascontiguousarray(bset.vx + (bset.centre[0, 0] - c[0]))
         gy = np.ascontiguousarray(bset.vy + (bset.centre[0, 1] - c[1]))
-        geang = bset.edge_angle
+        geang, getab = bset.edge_angle, bset.edge_table
         reach_pts = np.c_[gx, gy]
     else:
         g = np.atleast_2d(pts) - c
         gx = np.ascontiguousarray(g[:, 0])
         gy = np.ascontiguousarray(g[:, 1])
-        if len(g) == 1:
-            geang = np.zeros(1)
-        else:
-            phi = math.atan2(gy[1] - gy[0], gx[1] - gx[0])
-            geang = np.array([phi, phi + math.pi])
+        geang = np.empty(len(g))
+        getab = np.empty(len(g), dtype=np.int64)
+        edge_search_tables(gx, gy, geang, getab)  # a 1- or 2-vertex "polygon"
         reach_pts = g
     wx, wy, T = 0.0, 0.0, 0.0
     if w is not None:
@@ -71,8 +69,8 @@ def _run(prism, pset, pts, w, tol, poly_b=None):
         wx, wy = w[0] / wn, w[1] / wn
         # Beyond this length the shape is farther than the polygon's reach.
         T = float(np.max(np.hypot(reach_pts[:, 0], reach_pts[:, 1]))) + pset.radius[0] + 2 * tol + 1.0
-    hit, _, ax, ay, u, v, t = _gjk_generators(pset.vx, pset.vy, pset.edge_angle, len(pset.vx),
-                                              gx, gy, geang, len(gx), wx, wy, T, float(tol))
+    hit, _, ax, ay, u, v, t = _gjk_generators(pset.vx, pset.vy, pset.edge_angle, pset.edge_table, len(pset.vx),
+                                              gx, gy, geang, getab, len(gx), wx, wy, T, float(tol))
     if not hit:
         return False, np.full(2, np.nan)
     bx, by = u + wx * t, v + wy * t

@@ -16,7 +16,10 @@ silently (no re-normalisation, no re-orthogonalisation).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+from numba import njit
 
 __all__ = [
     "as_rotations",
@@ -100,6 +103,37 @@ def _check_finite(a64: np.ndarray, name: str, batched: bool, what: str = "") -> 
         raise ValueError(f"{name}{what} contains non-finite values (NaN or inf)")
 
 
+@njit(cache=True)
+def _first_bad_rotation(Rb, tol):
+    """One pass over (N, 3, 3): (index, kind, value) of the first bad matrix.
+
+    kind 0: all good; 1: non-finite; 2: not orthonormal (value = max error);
+    3: reflection (value = det). A compiled loop: the NumPy version
+    (matmul + det over the batch) cost more than the collision kernel.
+    """
+    for i in range(Rb.shape[0]):
+        R = Rb[i]
+        for j in range(3):
+            for k in range(3):
+                if not math.isfinite(R[j, k]):
+                    return i, 1, 0.0
+        err = 0.0
+        for j in range(3):
+            for k in range(3):
+                g = R[0, j] * R[0, k] + R[1, j] * R[1, k] + R[2, j] * R[2, k]
+                if j == k:
+                    g -= 1.0
+                err = max(err, abs(g))
+        if err > tol:
+            return i, 2, err
+        det = (R[0, 0] * (R[1, 1] * R[2, 2] - R[1, 2] * R[2, 1])
+               - R[0, 1] * (R[1, 0] * R[2, 2] - R[1, 2] * R[2, 0])
+               + R[0, 2] * (R[1, 0] * R[2, 1] - R[1, 1] * R[2, 0]))
+        if det <= 0.0:
+            return i, 3, det
+    return -1, 0, 0.0
+
+
 def _check_rotation_matrices(
     R64: np.ndarray, name: str, tol: float, batched: bool, what: str = ""
 ) -> None:
@@ -107,27 +141,17 @@ def _check_rotation_matrices(
 
     ``R64`` is float64 of shape (N, 3, 3) if ``batched`` else (3, 3).
     """
-    _check_finite(R64, name, batched, what)
-    Rb = R64 if batched else R64[None]
+    Rb = np.ascontiguousarray(R64 if batched else R64[None])
     if Rb.shape[0] == 0:
         return
-    eye = np.eye(3)
-    err = np.abs(np.matmul(np.swapaxes(Rb, -1, -2), Rb) - eye).max(axis=(1, 2))
-    bad = err > tol
-    if bad.any():
-        i = int(np.flatnonzero(bad)[0])
-        raise ValueError(
-            f"{_where(name, i if batched else None)}{what} is not orthonormal: "
-            f"max |R^T R - I| = {err[i]:.3e} > {tol:.0e}"
-        )
-    det = np.linalg.det(Rb)
-    bad = det <= 0.0
-    if bad.any():
-        i = int(np.flatnonzero(bad)[0])
-        raise ValueError(
-            f"{_where(name, i if batched else None)}{what} is a reflection "
-            f"(det = {det[i]:.6g}); a rotation must have det = +1"
-        )
+    i, kind, val = _first_bad_rotation(Rb, tol)
+    where = _where(name, int(i) if batched else None)
+    if kind == 1:
+        raise ValueError(f"{where}{what} contains non-finite values (NaN or inf)")
+    if kind == 2:
+        raise ValueError(f"{where}{what} is not orthonormal: max |R^T R - I| = {val:.3e} > {tol:.0e}")
+    if kind == 3:
+        raise ValueError(f"{where}{what} is a reflection (det = {val:.6g}); a rotation must have det = +1")
 
 
 def _quat_to_matrix(q64: np.ndarray, order: str) -> np.ndarray:

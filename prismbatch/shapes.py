@@ -14,6 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._planar import edge_search_tables
+
 __all__ = ["Prism", "PrismSet", "validate_polygon"]
 
 _TWO_PI = 2.0 * np.pi
@@ -116,10 +118,9 @@ def _kernel_data(ccw, centre):
     v = ccw - centre
     e = np.roll(v, -1, axis=0) - v
     elen = np.hypot(e[:, 0], e[:, 1])
-    prev = np.roll(e, 1, axis=0)
-    turn = np.arctan2(prev[:, 0] * e[:, 1] - prev[:, 1] * e[:, 0], prev[:, 0] * e[:, 0] + prev[:, 1] * e[:, 1])
-    turn = np.maximum(turn, 0.0)
-    eang = np.arctan2(e[0, 1], e[0, 0]) + np.concatenate(([0.0], np.cumsum(turn[1:])))
+    eang = np.empty(len(v))
+    etab = np.empty(len(v), dtype=np.int64)
+    edge_search_tables(np.ascontiguousarray(v[:, 0]), np.ascontiguousarray(v[:, 1]), eang, etab)
     # Polar angle of each vertex about the centre, unwrapped to increase.
     step = np.arctan2(
         np.roll(v[:, 0], 1) * v[:, 1] - np.roll(v[:, 1], 1) * v[:, 0],
@@ -127,7 +128,7 @@ def _kernel_data(ccw, centre):
     )
     vang = np.arctan2(v[0, 1], v[0, 0]) + np.concatenate(([0.0], np.cumsum(step[1:])))
     radius = float(np.max(np.hypot(v[:, 0], v[:, 1])))
-    return v, eang, vang, 1.0 / elen, radius
+    return v, eang, etab, vang, 1.0 / elen, radius
 
 
 class Prism:
@@ -209,8 +210,12 @@ class PrismSet:
     vx, vy : numpy.ndarray, shape (total,)
         Vertex coordinates about each polygon's centre, counter-clockwise.
     edge_angle : numpy.ndarray, shape (total,)
-        Direction angle of edge ``v_k -> v_{k+1}``, unwrapped so that it
-        increases along each polygon (binary search of extreme vertices).
+        Pseudo-angle (see ``_planar.pseudo_angle``) of edge ``v_k -> v_{k+1}``,
+        unwrapped so that it increases along each polygon.
+    edge_table : numpy.ndarray of int64, shape (total,)
+        Per polygon, a bucket table over those angles: with ``edge_angle`` it
+        finds the extreme vertex in a direction in O(1) for evenly spread
+        edges, O(log n) at worst.
     vertex_angle : numpy.ndarray, shape (total,)
         Polar angle of each vertex about the centre, unwrapped increasing
         (binary search of the wedge holding a point, the paper's eq. 1).
@@ -240,11 +245,12 @@ class PrismSet:
         self.vx = np.ascontiguousarray(v[:, 0])
         self.vy = np.ascontiguousarray(v[:, 1])
         self.edge_angle = np.concatenate([q[1] for q in parts])
-        self.vertex_angle = np.concatenate([q[2] for q in parts])
-        self.inv_edge_len = np.concatenate([q[3] for q in parts])
-        self.radius = np.array([q[4] for q in parts])
+        self.edge_table = np.concatenate([q[2] for q in parts])
+        self.vertex_angle = np.concatenate([q[3] for q in parts])
+        self.inv_edge_len = np.concatenate([q[4] for q in parts])
+        self.radius = np.array([q[5] for q in parts])
         self.centre = np.array([p.centre for p in prisms]).reshape(-1, 2)
-        for arr in (self.offsets, self.vx, self.vy, self.edge_angle, self.vertex_angle,
+        for arr in (self.offsets, self.vx, self.vy, self.edge_angle, self.edge_table, self.vertex_angle,
                     self.inv_edge_len, self.radius, self.centre):
             arr.flags.writeable = False
 
@@ -261,7 +267,7 @@ class PrismSet:
     def kernel_arrays(self, dtype=np.float64):
         """Tuple of arrays passed to the kernels, cast once to ``dtype``."""
         f = lambda a: np.ascontiguousarray(a, dtype=dtype)  # noqa: E731
-        return (f(self.vx), f(self.vy), f(self.edge_angle), f(self.vertex_angle),
+        return (f(self.vx), f(self.vy), f(self.edge_angle), self.edge_table, f(self.vertex_angle),
                 f(self.inv_edge_len), self.offsets, f(self.radius), f(self.centre))
 
 

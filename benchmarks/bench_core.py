@@ -1,0 +1,721 @@
+#!/usr/bin/env python
+"""Core benchmark of prismbatch against python-fcl and coal.
+
+What is measured (see benchmarks/README.md for how to run it):
+
+* per-pair time of ``prismbatch`` at 36, 360 and 3600 vertices, on *facing*
+  (paper-like) poses and on fully random (*free*) poses;
+* one thread (``Collider.collide(..., parallel=False)`` with
+  ``numba.set_num_threads(1)``) and all threads (``parallel=True`` with every
+  Numba thread), status-only and with contact points;
+* python-fcl and coal on the SAME pose pairs in the same run: a fixed subset
+  of the prismbatch pairs, on which prismbatch is timed again so that the
+  ratio compares identical work; each peer query is setTransform (both
+  objects) + collide with a fresh request/result, the geometry being built
+  once;
+* agreement of the hit flags on that subset (the peers use finite stand-ins
+  of length ``fcl_standin_length``; disagreements are counted, adjudicated
+  with the LP reference of tests/reference.py when available, and written out
+  with reproducers, never treated as failures);
+* first-call (compile) time of the serial and of the parallel kernel in fresh
+  subprocesses with an empty Numba cache, and the first-call time again with
+  that cache warm.
+
+Timings are medians over repeats with min/max and quartiles.  Each repeat
+times one call over all pairs of a set (prismbatch) or one Python loop over
+the subset (peers); per-pair time = call time / number of pairs.
+
+Results: a Markdown report on stdout plus ``results.csv``, ``meta.json`` and
+``disagreements.json`` in ``--out`` (default benchmarks/results/).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import datetime as _dt
+import gc
+import importlib.util
+import json
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from importlib import metadata
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+REPO = HERE.parent
+
+SIZES = (36, 360, 3600)
+RADIUS_A = 2.0
+RADIUS_B = 2.5
+FACING_MAX_TILT_DEG = 15.0
+TARGETS = {36: 10.0, 3600: 20.0}  # FCL / prismbatch(1 thread), per pair
+
+
+# ---------------------------------------------------------------------------
+# pose generators
+# ---------------------------------------------------------------------------
+def _quat_to_matrix(q):
+    """(N, 4) unit quaternions (w, x, y, z) -> (N, 3, 3) rotation matrices."""
+    w, x, y, z = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
+    R = np.empty((len(q), 3, 3))
+    R[:, 0, 0] = 1 - 2 * (y * y + z * z)
+    R[:, 0, 1] = 2 * (x * y - w * z)
+    R[:, 0, 2] = 2 * (x * z + w * y)
+    R[:, 1, 0] = 2 * (x * y + w * z)
+    R[:, 1, 1] = 1 - 2 * (x * x + z * z)
+    R[:, 1, 2] = 2 * (y * z - w * x)
+    R[:, 2, 0] = 2 * (x * z - w * y)
+    R[:, 2, 1] = 2 * (y * z + w * x)
+    R[:, 2, 2] = 1 - 2 * (x * x + y * y)
+    return R
+
+
+def random_rotations(rng, n):
+    """Uniform (Haar) random rotations: normalised 4-D Gaussian quaternions."""
+    q = rng.standard_normal((n, 4))
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    return _quat_to_matrix(q)
+
+
+def _axis_angle(axis, angle):
+    """(N, 3) unit axes, (N,) angles -> (N, 3, 3) rotations."""
+    h = 0.5 * angle
+    q = np.concatenate([np.cos(h)[:, None], np.sin(h)[:, None] * axis], axis=1)
+    return _quat_to_matrix(q)
+
+
+def poses_facing(rng, n):
+    """Paper-like scene: a at the origin pointing down, b pointing up, tilted.
+
+    a: p = 0, R = diag(1, -1, -1) (body is z <= 0, end face at z = 0).
+    b: random spin about its own axis, then a tilt of up to 15 degrees about a
+    random horizontal axis; centre uniform in |x|, |y| <= 6, z in [-1.5, 3].
+    """
+    pos_a = np.zeros((n, 3))
+    rot_a = np.broadcast_to(np.diag([1.0, -1.0, -1.0]), (n, 3, 3)).copy()
+    spin = _axis_angle(np.tile([0.0, 0.0, 1.0], (n, 1)), rng.uniform(0.0, 2 * np.pi, n))
+    phi = rng.uniform(0.0, 2 * np.pi, n)
+    tilt_axis = np.stack([np.cos(phi), np.sin(phi), np.zeros(n)], axis=1)
+    tilt = _axis_angle(tilt_axis, np.deg2rad(rng.uniform(0.0, FACING_MAX_TILT_DEG, n)))
+    rot_b = tilt @ spin
+    pos_b = rng.uniform([-6.0, -6.0, -1.5], [6.0, 6.0, 3.0], (n, 3))
+    return pos_a, rot_a, pos_b, rot_b
+
+
+def poses_free(rng, n):
+    """Uniform random rotations for both, centres uniform in [-5, 5]^3."""
+    pos_a = rng.uniform(-5.0, 5.0, (n, 3))
+    rot_a = random_rotations(rng, n)
+    pos_b = rng.uniform(-5.0, 5.0, (n, 3))
+    rot_b = random_rotations(rng, n)
+    return pos_a, rot_a, pos_b, rot_b
+
+
+POSE_SETS = {"facing": poses_facing, "free": poses_free}
+
+
+# ---------------------------------------------------------------------------
+# timing helpers
+# ---------------------------------------------------------------------------
+def time_repeats(fn, repeats, warmup=1):
+    """Run fn() warmup + repeats times; wall and process-CPU seconds per repeat."""
+    for _ in range(warmup):
+        fn()
+    walls, cpus = [], []
+    gc_was_enabled = gc.isenabled()
+    gc.disable()
+    try:
+        for _ in range(repeats):
+            c0 = time.process_time()
+            t0 = time.perf_counter()
+            fn()
+            t1 = time.perf_counter()
+            c1 = time.process_time()
+            walls.append(t1 - t0)
+            cpus.append(c1 - c0)
+    finally:
+        if gc_was_enabled:
+            gc.enable()
+    return np.array(walls), np.array(cpus)
+
+
+def summarize(walls, cpus, n_pairs):
+    """Per-pair statistics in microseconds."""
+    us = walls / n_pairs * 1e6
+    q1, med, q3 = np.percentile(us, [25, 50, 75])
+    return {
+        "median_us": float(med), "min_us": float(us.min()), "max_us": float(us.max()),
+        "q1_us": float(q1), "q3_us": float(q3), "repeats": int(len(us)),
+        "n_pairs": int(n_pairs),
+        # process CPU time / wall time: ~1 on one thread, ~k with k busy threads
+        "cpu_per_wall": float(np.sum(cpus) / max(np.sum(walls), 1e-12)),
+    }
+
+
+def thread_use(fn, min_seconds=0.4):
+    """Process CPU time / wall time of back-to-back calls of fn for >= min_seconds.
+
+    Per-repeat CPU times of millisecond calls are at the mercy of the kernel's
+    CPU-time accounting granularity, so thread use is measured on its own.
+    """
+    fn()
+    c0, t0 = time.process_time(), time.perf_counter()
+    while True:
+        fn()
+        t1 = time.perf_counter()
+        if t1 - t0 >= min_seconds:
+            break
+    return (time.process_time() - c0) / (t1 - t0)
+
+
+class threads:
+    """Context manager: numba.set_num_threads(k), restored afterwards."""
+
+    def __init__(self, k):
+        self.k = k
+
+    def __enter__(self):
+        import numba
+        self.old = numba.get_num_threads()
+        numba.set_num_threads(self.k)
+
+    def __exit__(self, *exc):
+        import numba
+        numba.set_num_threads(self.old)
+
+
+# ---------------------------------------------------------------------------
+# peers
+# ---------------------------------------------------------------------------
+def _as_items(pos_a, rot_a, pos_b, rot_b):
+    """Per-pair contiguous float64 arrays, prepared outside the timed loops."""
+    f = lambda x: np.ascontiguousarray(x, dtype=np.float64)  # noqa: E731
+    return [(f(rot_a[k]), f(pos_a[k]), f(rot_b[k]), f(pos_b[k])) for k in range(len(pos_a))]
+
+
+def fcl_loop(peer, items):
+    """python-fcl: per query 2x setTransform + collide with a fresh request/result."""
+    import fcl
+    oa, ob = peer.obj_a, peer.obj_b
+    Transform, Request, Result, collide = (fcl.Transform, fcl.CollisionRequest,
+                                           fcl.CollisionResult, fcl.collide)
+    out = np.empty(len(items), dtype=bool)
+    for k, (ra, pa, rb, pb_) in enumerate(items):
+        oa.setTransform(Transform(ra, pa))
+        ob.setTransform(Transform(rb, pb_))
+        res = Result()
+        collide(oa, ob, Request(), res)
+        out[k] = res.is_collision
+    return out
+
+
+def coal_loop(peer, items):
+    """coal: same per-query work as fcl_loop."""
+    import coal
+    oa, ob = peer.obj_a, peer.obj_b
+    Transform, Request, Result, collide = (coal.Transform3s, coal.CollisionRequest,
+                                           coal.CollisionResult, coal.collide)
+    out = np.empty(len(items), dtype=bool)
+    for k, (ra, pa, rb, pb_) in enumerate(items):
+        oa.setTransform(Transform(ra, pa))
+        ob.setTransform(Transform(rb, pb_))
+        res = Result()
+        collide(oa, ob, Request(), res)
+        out[k] = res.isCollision()
+    return out
+
+
+def coal_prism_strip(xy, length):
+    """coal.Convex of the extruded polygon with STRIP-triangulated caps.
+
+    prismbatch.peers.coal_prism fan-triangulates the caps, so one vertex per
+    cap gets n-1 neighbours and coal refuses polygons above ~255 vertices
+    ("Too many neighbors").  A zig-zag strip gives every vertex at most a
+    handful of neighbours; the solid is the same.
+    """
+    import coal
+    from prismbatch.peers import _prism_mesh  # vertices: 0..n-1 bottom, n..2n-1 top
+    verts, faces = _prism_mesh(xy, length)
+    n = len(verts) // 2
+    tris = []
+    i, j = 0, n - 1  # strip over the CCW polygon 0..n-1
+    while j - i >= 2:
+        tris.append((i, i + 1, j))
+        i += 1
+        if j - i >= 2:
+            tris.append((i, j - 1, j))
+            j -= 1
+    pts = coal.StdVec_Vec3s()
+    for v in verts:
+        pts.append(np.asarray(v, dtype=float))
+    out = coal.StdVec_Triangle()
+    for a, b, c in tris:
+        out.append(coal.Triangle(a, c, b))              # bottom cap, normal -z
+        out.append(coal.Triangle(n + a, n + b, n + c))  # top cap, normal +z
+    for f in faces[2:]:                                 # side quads (outward)
+        out.append(coal.Triangle(int(f[0]), int(f[1]), int(f[2])))
+        out.append(coal.Triangle(int(f[0]), int(f[2]), int(f[3])))
+    return coal.Convex(pts, out)
+
+
+class CoalStripPeer:
+    """Like prismbatch.peers.CoalPeer, with strip-triangulated caps."""
+
+    def __init__(self, xy_a, xy_b, length):
+        import coal
+        self.length = float(length)
+        self.geom_a = coal_prism_strip(xy_a, self.length)
+        self.geom_b = coal_prism_strip(xy_b, self.length)
+        self.obj_a = coal.CollisionObject(self.geom_a, coal.Transform3s())
+        self.obj_b = coal.CollisionObject(self.geom_b, coal.Transform3s())
+
+
+def _load_reference():
+    """tests/reference.py (LP ground truth) if present and scipy is installed."""
+    path = REPO / "tests" / "reference.py"
+    if not path.exists():
+        return None
+    try:
+        spec = importlib.util.spec_from_file_location("_prismbatch_test_reference", path)
+        mod = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(mod)
+        return mod
+    except Exception:  # noqa: BLE001 - optional diagnostics only
+        return None
+
+
+# ---------------------------------------------------------------------------
+# one (n, pose set) cell
+# ---------------------------------------------------------------------------
+def bench_cell(n, pose_name, args, all_threads, ref, log):
+    import prismbatch as pb
+    from prismbatch.peers import FCLPeer, fcl_standin_length
+
+    rng = np.random.default_rng([args.seed, n, list(POSE_SETS).index(pose_name)])
+    pos_a, rot_a, pos_b, rot_b = POSE_SETS[pose_name](rng, args.n_pairs)
+    a = pb.Prism.regular(n, RADIUS_A)
+    b = pb.Prism.regular(n, RADIUS_B)
+    col = pb.Collider(a, b)
+    rep = args.repeats
+    rows = {}
+
+    def pb_call(P, R_a, Q, R_b, contact, parallel):
+        return lambda: col.collide(P, R_a, Q, R_b, contact=contact, parallel=parallel)
+
+    full = (pos_a, rot_a, pos_b, rot_b)
+    M = min(args.n_peer, args.n_pairs)
+    sub = tuple(x[:M] for x in full)
+
+    # --- prismbatch, full set ---
+    with threads(1):
+        res_full = col.collide(*full, parallel=False)
+        res_contact = col.collide(*full, contact=True, parallel=False)
+        for key, contact in (("pb_1t_status", False), ("pb_1t_contact", True)):
+            rows[key] = summarize(*time_repeats(pb_call(*full, contact, False), rep), args.n_pairs)
+    with threads(all_threads):
+        for key, contact in (("pb_all_status", False), ("pb_all_contact", True)):
+            rows[key] = summarize(*time_repeats(pb_call(*full, contact, True), rep), args.n_pairs)
+        rows["pb_all_status"]["cpu_per_wall"] = thread_use(pb_call(*full, False, True))
+    # latency of a call with a single pair (fixed per-call overhead dominates)
+    one = tuple(x[:1] for x in full)
+    with threads(1):
+        rows["pb_1t_single_pair_call"] = summarize(
+            *time_repeats(pb_call(*one, False, False), max(rep, 200), warmup=5), 1)
+    res_par = col.collide(*full, parallel=True)
+    mismatch_serial_parallel = int(np.count_nonzero(res_par.hit != res_full.hit))
+    mismatch_status_contact = int(np.count_nonzero(res_contact.hit != res_full.hit))
+
+    # --- kernel only (private API: no pose validation/conversion); diagnostic ---
+    try:
+        from prismbatch import _batch
+        kp = [np.ascontiguousarray(x, dtype=np.float64) for x in full]
+        for key, k_threads, parallel in (("kernel_1t_status", 1, False),
+                                         ("kernel_all_status", all_threads, True)):
+            with threads(k_threads):
+                fn = lambda parallel=parallel: _batch.run(  # noqa: E731
+                    col._a, col._b, *kp, args.n_pairs, col.rtol, col.atol, False, parallel)
+                rows[key] = summarize(*time_repeats(fn, rep), args.n_pairs)
+                rows[key]["cpu_per_wall"] = thread_use(fn)
+    except Exception as exc:  # noqa: BLE001 - private API may change
+        log(f"  (kernel-only timing skipped: {type(exc).__name__}: {exc})")
+
+    # --- same subset for prismbatch and the peers ---
+    with threads(1):
+        res_sub = col.collide(*sub, parallel=False)
+        rows["sub_pb_1t_status"] = summarize(*time_repeats(pb_call(*sub, False, False), rep), M)
+
+    length = max(fcl_standin_length(a.xy, b.xy, sub[0][k], sub[2][k]) for k in range(M))
+    items = _as_items(*sub)
+    peer_hits = {}
+    fpeer = FCLPeer(a.xy, b.xy, length)
+    peer_hits["fcl"] = fcl_loop(fpeer, items)
+    rows["sub_fcl"] = summarize(*time_repeats(lambda: fcl_loop(fpeer, items), args.peer_repeats,
+                                              warmup=0), M)
+    try:
+        cpeer = CoalStripPeer(a.xy, b.xy, length)
+        peer_hits["coal"] = coal_loop(cpeer, items)
+        rows["sub_coal"] = summarize(*time_repeats(lambda: coal_loop(cpeer, items),
+                                                   args.peer_repeats, warmup=0), M)
+    except ImportError:
+        log("  (coal not installed: skipped)")
+
+    # --- agreement on the subset ---
+    agreement = {}
+    repro = []
+    for name, h in peer_hits.items():
+        idx = np.flatnonzero(h != res_sub.hit)
+        agreement[name] = {"disagreements": int(len(idx)), "n": int(M),
+                           "pb_hit_peer_miss": int(np.count_nonzero(res_sub.hit[idx])),
+                           "pb_miss_peer_hit": int(np.count_nonzero(~res_sub.hit[idx]))}
+        for k in idx[: args.max_repro]:
+            k = int(k)
+            entry = {
+                "n": n, "poses": pose_name, "peer": name, "index": k,
+                "shape_a": f"Prism.regular({n}, {RADIUS_A})",
+                "shape_b": f"Prism.regular({n}, {RADIUS_B})",
+                "pos_a": sub[0][k].tolist(), "rot_a": sub[1][k].tolist(),
+                "pos_b": sub[2][k].tolist(), "rot_b": sub[3][k].tolist(),
+                "pb_hit": bool(res_sub.hit[k]), "pb_case": int(res_sub.case[k]),
+                "peer_hit": bool(h[k]), "standin_length": length,
+            }
+            if ref is not None:
+                try:
+                    entry["lp_margin_semi_infinite"] = ref.margin_lp(
+                        a.xy, sub[0][k], sub[1][k], b.xy, sub[2][k], sub[3][k])
+                    entry["lp_margin_finite_standins"] = ref.margin_lp(
+                        a.xy, sub[0][k], sub[1][k], b.xy, sub[2][k], sub[3][k],
+                        length_a=length, length_b=length)
+                    lp_hit = entry["lp_margin_semi_infinite"] >= 0.0
+                    entry["verdict"] = ("prismbatch agrees with LP (semi-infinite)"
+                                        if lp_hit == entry["pb_hit"] else
+                                        "prismbatch DISAGREES with LP (semi-infinite)")
+                except Exception as exc:  # noqa: BLE001
+                    entry["lp_error"] = f"{type(exc).__name__}: {exc}"
+            repro.append(entry)
+
+    info = {
+        "n": n, "poses": pose_name,
+        "hit_fraction": float(res_full.hit.mean()),
+        "hit_fraction_subset": float(res_sub.hit.mean()),
+        "case_counts": res_full.case_counts(),
+        "standin_length": float(length),
+        "serial_vs_parallel_hit_mismatches": mismatch_serial_parallel,
+        "status_vs_contact_hit_mismatches": mismatch_status_contact,
+        "agreement": agreement,
+    }
+    return rows, info, repro
+
+
+# ---------------------------------------------------------------------------
+# first-call (compile) time, in fresh subprocesses
+# ---------------------------------------------------------------------------
+_FIRST_CALL_CODE = r"""
+import json, sys, time
+t0 = time.perf_counter()
+import numpy as np
+import prismbatch as pb
+t_import = time.perf_counter() - t0
+parallel = sys.argv[1] == "parallel"
+rng = np.random.default_rng(0)
+a, b = pb.Prism.regular(36, 2.0), pb.Prism.regular(36, 2.5)
+pa = rng.uniform(-1, 1, (10, 3)); pb_ = rng.uniform(-1, 1, (10, 3))
+ra = np.broadcast_to(np.diag([1.0, -1.0, -1.0]), (10, 3, 3)); rb = np.broadcast_to(np.eye(3), (10, 3, 3))
+t = time.perf_counter(); pb.collide(a, b, pa, ra, pb_, rb, parallel=parallel); t1 = time.perf_counter() - t
+t = time.perf_counter(); pb.collide(a, b, pa, ra, pb_, rb, parallel=parallel); t2 = time.perf_counter() - t
+print(json.dumps({"import_s": t_import, "first_s": t1, "second_s": t2}))
+"""
+
+
+def _first_call(kind, cache_dir):
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(cache_dir))
+    out = subprocess.run([sys.executable, "-c", _FIRST_CALL_CODE, kind], env=env,
+                         capture_output=True, text=True, timeout=900, check=False)
+    if out.returncode != 0:
+        raise RuntimeError(f"first-call subprocess ({kind}) failed:\n{out.stderr[-2000:]}")
+    r = json.loads(out.stdout.strip().splitlines()[-1])
+    r["first_minus_second_s"] = r["first_s"] - r["second_s"]
+    return r
+
+
+def compile_times(log):
+    """Fresh cache dir per kernel kind (serial, parallel): cold, then warm."""
+    res = {}
+    for kind in ("serial", "parallel"):
+        with tempfile.TemporaryDirectory(prefix=f"pb_numba_cache_{kind}_") as d:
+            cold = _first_call(kind, d)
+            warm = _first_call(kind, d)
+        res[kind] = {"cold": cold, "cached": warm}
+        log(f"  {kind}: cold first call {cold['first_minus_second_s']:.2f} s "
+            f"(minus 2nd call), cached {warm['first_minus_second_s']:.3f} s")
+    return res
+
+
+# ---------------------------------------------------------------------------
+# machine info and output
+# ---------------------------------------------------------------------------
+def _version(dist):
+    try:
+        return metadata.version(dist)
+    except metadata.PackageNotFoundError:
+        return None
+
+
+def machine_info():
+    import numba
+
+    cpu = None
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    try:
+        commit = subprocess.run(["git", "-C", str(REPO), "rev-parse", "HEAD"], capture_output=True,
+                                text=True, check=False).stdout.strip() or None
+        dirty = bool(subprocess.run(["git", "-C", str(REPO), "status", "--porcelain", "--",
+                                     "prismbatch"], capture_output=True, text=True,
+                                    check=False).stdout.strip())
+    except OSError:
+        commit, dirty = None, None
+    try:
+        threading_layer = numba.threading_layer()
+    except ValueError:
+        threading_layer = None
+    return {
+        "cpu_model": cpu or platform.processor() or None,
+        "logical_cpus": os.cpu_count(),
+        "affinity_cpus": len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else None,
+        "numba_threads": numba.get_num_threads(),
+        "numba_threading_layer": threading_layer,
+        "python": platform.python_version(),
+        "platform": platform.platform(),
+        "numpy": np.__version__,
+        "numba": numba.__version__,
+        "python-fcl": _version("python-fcl"),
+        "coal": _version("coal"),
+        "prismbatch": _version("prismbatch"),
+        "git_commit": commit,
+        "prismbatch_worktree_dirty": dirty,
+        "date_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+    }
+
+
+def _fmt(x):
+    if x is None or not np.isfinite(x):
+        return "–"
+    if x >= 100:
+        return f"{x:.0f}"
+    if x >= 10:
+        return f"{x:.1f}"
+    if x >= 1:
+        return f"{x:.2f}"
+    return f"{x:.3f}"
+
+
+def _cell(rows, key):
+    r = rows.get(key)
+    return _fmt(r["median_us"]) if r else "–"
+
+
+def _spread(rows, key):
+    r = rows.get(key)
+    if not r:
+        return "–"
+    return f"{_fmt(r['median_us'])} [{_fmt(r['min_us'])}–{_fmt(r['max_us'])}]"
+
+
+def markdown_report(results, infos, meta, comp):
+    L = []
+    th = meta["machine"]["numba_threads"]
+    L.append("## prismbatch core benchmark\n")
+    m = meta["machine"]
+    L.append(f"Machine: {m['cpu_model']}, {m['logical_cpus']} logical CPUs, Numba threads "
+             f"{th} ({m['numba_threading_layer']}); Python {m['python']}, numpy {m['numpy']}, "
+             f"numba {m['numba']}, python-fcl {m['python-fcl']}, coal {m['coal']}, "
+             f"prismbatch {m['prismbatch']} @ {str(m['git_commit'])[:10]}"
+             f"{' (+uncommitted changes)' if m['prismbatch_worktree_dirty'] else ''}.\n")
+    a = meta["args"]
+    L.append(f"Pairs per set: {a['n_pairs']} for prismbatch; peers on the first {a['n_peer']} of "
+             f"them (prismbatch re-timed on exactly those). Repeats: {a['repeats']} "
+             f"(peers {a['peer_repeats']}); medians. Shapes: regular n-gons of radius "
+             f"{RADIUS_A} (a) and {RADIUS_B} (b). Per-pair times in µs.\n")
+    L.append("### Summary (per pair, µs, median)\n")
+    L.append("| n | poses | hit % | pb 1T status | pb 1T contact | pb all-T status "
+             "| pb 1T status (subset) | FCL | coal | FCL / pb 1T | coal / pb 1T | target |")
+    L.append("|---:|:---|---:|---:|---:|---:|---:|---:|---:|---:|---:|:---|")
+    for (n, pose), rows in results.items():
+        info = infos[(n, pose)]
+        sub = rows["sub_pb_1t_status"]["median_us"]
+        fcl_r = rows["sub_fcl"]["median_us"] / sub
+        coal_r = rows["sub_coal"]["median_us"] / sub if "sub_coal" in rows else float("nan")
+        tgt = TARGETS.get(n)
+        tgt_s = "–" if tgt is None else (f"≥{tgt:.0f}x: " + ("met" if fcl_r >= tgt else "NOT met"))
+        L.append(f"| {n} | {pose} | {100 * info['hit_fraction']:.1f} | {_cell(rows, 'pb_1t_status')} "
+                 f"| {_cell(rows, 'pb_1t_contact')} | {_cell(rows, 'pb_all_status')} "
+                 f"| {_cell(rows, 'sub_pb_1t_status')} | {_cell(rows, 'sub_fcl')} "
+                 f"| {_cell(rows, 'sub_coal')} | {fcl_r:.1f}x | {coal_r:.1f}x | {tgt_s} |")
+    L.append("")
+    L.append("### Detail: median [min–max] µs per pair; thread use = process CPU time / wall time\n")
+    L.append("| n | poses | pb 1T status | pb 1T contact | contact overhead | pb all-T status "
+             "| pb all-T contact | all-T speed-up | all-T thread use | kernel-only 1T | "
+             "kernel-only all-T (thread use) | FCL | coal | 1-pair call |")
+    L.append("|---:|:---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    for (n, pose), rows in results.items():
+        s1, c1 = rows["pb_1t_status"]["median_us"], rows["pb_1t_contact"]["median_us"]
+        sa = rows["pb_all_status"]["median_us"]
+        ka = rows.get("kernel_all_status")
+        ka_s = f"{_spread(rows, 'kernel_all_status')} ({ka['cpu_per_wall']:.2f})" if ka else "–"
+        L.append(f"| {n} | {pose} | {_spread(rows, 'pb_1t_status')} | {_spread(rows, 'pb_1t_contact')} "
+                 f"| {100 * (c1 / s1 - 1):+.0f}% | {_spread(rows, 'pb_all_status')} "
+                 f"| {_spread(rows, 'pb_all_contact')} | {s1 / sa:.2f}x "
+                 f"| {rows['pb_all_status']['cpu_per_wall']:.2f} | {_spread(rows, 'kernel_1t_status')} "
+                 f"| {ka_s} | {_spread(rows, 'sub_fcl')} | {_spread(rows, 'sub_coal')} "
+                 f"| {_cell(rows, 'pb_1t_single_pair_call')} |")
+    L.append("")
+    L.append("### Agreement on the peer subset (peers use finite stand-ins)\n")
+    L.append("| n | poses | subset | stand-in length | FCL disagreements (pb hit / peer hit) "
+             "| coal disagreements (pb hit / peer hit) | serial≠parallel | status≠contact |")
+    L.append("|---:|:---|---:|---:|---:|---:|---:|---:|")
+    for (n, pose), info in infos.items():
+        ag = info["agreement"]
+
+        def d(name):
+            x = ag.get(name)
+            return "–" if x is None else (f"{x['disagreements']} ({x['pb_hit_peer_miss']} / "
+                                          f"{x['pb_miss_peer_hit']})")
+        L.append(f"| {n} | {pose} | {ag['fcl']['n']} | {info['standin_length']:.1f} | {d('fcl')} "
+                 f"| {d('coal')} | {info['serial_vs_parallel_hit_mismatches']} "
+                 f"| {info['status_vs_contact_hit_mismatches']} |")
+    L.append("")
+    if comp:
+        L.append("### First call (Numba compile), fresh subprocess, 10 pairs\n")
+        L.append("| kernel | cold: 1st − 2nd call (s) | cached: 1st − 2nd call (s) | import (s) |")
+        L.append("|:---|---:|---:|---:|")
+        for kind, r in comp.items():
+            L.append(f"| {kind} | {r['cold']['first_minus_second_s']:.2f} "
+                     f"| {r['cached']['first_minus_second_s']:.3f} | {r['cold']['import_s']:.2f} |")
+        L.append("")
+    return "\n".join(L)
+
+
+def write_outputs(out_dir, results, infos, meta, repro):
+    out_dir.mkdir(parents=True, exist_ok=True)
+    if out_dir.resolve() == (HERE / "results").resolve() and not (out_dir / ".gitignore").exists():
+        (out_dir / ".gitignore").write_text("# benchmark output, not committed\n*\n")
+    fields = ["n", "poses", "measure", "median_us", "min_us", "max_us", "q1_us", "q3_us",
+              "repeats", "n_pairs", "cpu_per_wall", "hit_fraction"]
+    with open(out_dir / "results.csv", "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=fields)
+        w.writeheader()
+        for (n, pose), rows in results.items():
+            for key, r in rows.items():
+                w.writerow({"n": n, "poses": pose, "measure": key,
+                            "hit_fraction": infos[(n, pose)]["hit_fraction"], **r})
+    meta = dict(meta, cells=[dict(v) for v in infos.values()])
+    (out_dir / "meta.json").write_text(json.dumps(meta, indent=2, default=str))
+    (out_dir / "disagreements.json").write_text(json.dumps(repro, indent=2))
+
+
+# ---------------------------------------------------------------------------
+def parse_args(argv=None):
+    p = argparse.ArgumentParser(
+        description="Per-pair collision time of prismbatch vs python-fcl and coal "
+                    "(36/360/3600 vertices, facing and free poses, 1 and all threads, "
+                    "status vs contact, first-call compile time).")
+    p.add_argument("--quick", action="store_true",
+                   help="smaller batches and fewer repeats (well under a minute)")
+    p.add_argument("--out", type=Path, default=HERE / "results",
+                   help="output directory for results.csv, meta.json, disagreements.json "
+                        "(default: benchmarks/results/)")
+    p.add_argument("--sizes", type=int, nargs="+", default=list(SIZES),
+                   help="polygon vertex counts (default: 36 360 3600)")
+    p.add_argument("--poses", nargs="+", choices=list(POSE_SETS), default=list(POSE_SETS),
+                   help="pose sets (default: facing free)")
+    p.add_argument("--n-pairs", type=int, default=None,
+                   help="pairs per set for prismbatch (default 50000; quick 4000)")
+    p.add_argument("--n-peer", type=int, default=None,
+                   help="pairs of the same set timed with the peers (default 10000; quick 400)")
+    p.add_argument("--repeats", type=int, default=None,
+                   help="timed repeats for prismbatch (default 9; quick 3)")
+    p.add_argument("--peer-repeats", type=int, default=None,
+                   help="timed repeats for the peers (default 5; quick 2)")
+    p.add_argument("--seed", type=int, default=20240611, help="random seed")
+    p.add_argument("--max-repro", type=int, default=20,
+                   help="disagreements per cell written with reproducers (default 20)")
+    p.add_argument("--skip-compile", action="store_true",
+                   help="skip the first-call compile-time subprocesses")
+    args = p.parse_args(argv)
+    q = args.quick
+    if args.n_pairs is None:
+        args.n_pairs = 4000 if q else 50000
+    if args.n_peer is None:
+        args.n_peer = 400 if q else 10000
+    if args.repeats is None:
+        args.repeats = 3 if q else 9
+    if args.peer_repeats is None:
+        args.peer_repeats = 2 if q else 5
+    return args
+
+
+def main(argv=None):
+    args = parse_args(argv)
+    import numba
+
+    def log(msg):
+        print(msg, file=sys.stderr, flush=True)
+
+    t_start = time.perf_counter()
+    all_threads = numba.get_num_threads()
+    ref = _load_reference()
+
+    comp = None
+    if not args.skip_compile:
+        log("first-call compile times (fresh subprocesses)...")
+        comp = compile_times(log)
+
+    results, infos, repro = {}, {}, []
+    for n in args.sizes:
+        for pose in args.poses:
+            t0 = time.perf_counter()
+            rows, info, rp = bench_cell(n, pose, args, all_threads, ref, log)
+            results[(n, pose)] = rows
+            infos[(n, pose)] = info
+            repro.extend(rp)
+            log(f"n={n:5d} {pose:6s}: pb 1T {rows['pb_1t_status']['median_us']:.3f} µs, "
+                f"FCL {rows['sub_fcl']['median_us']:.2f} µs, "
+                f"disagreements {info['agreement']} ({time.perf_counter() - t0:.1f} s)")
+
+    meta = {
+        "machine": machine_info(),
+        "args": {k: (str(v) if isinstance(v, Path) else v) for k, v in vars(args).items()},
+        "compile_times": comp,
+        "targets_fcl_over_pb_1t": TARGETS,
+        "elapsed_s": time.perf_counter() - t_start,
+        "notes": [
+            "pb 1T = Collider.collide(parallel=False) under numba.set_num_threads(1)",
+            "pb all-T = Collider.collide(parallel=True) with all Numba threads",
+            "kernel-only = prismbatch._batch.run (private), no pose validation/conversion",
+            "1-pair call = latency of Collider.collide on a single pair (1 thread)",
+            "thread use = process CPU time / wall time over >= 0.4 s of back-to-back calls",
+            "peers: per query 2x setTransform + collide with fresh request/result; objects built once",
+            "coal stand-ins use strip-triangulated caps (peers.coal_prism's fan fails for n >= ~256)",
+        ],
+    }
+    report = markdown_report(results, infos, meta, comp)
+    print(report)
+    print(f"\n_Total time {meta['elapsed_s']:.0f} s; results in {args.out}_")
+    write_outputs(args.out, results, infos, meta, repro)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
