@@ -298,6 +298,7 @@ def bench_cell(n, pose_name, args, all_threads, ref, log):
     import prismbatch as pb
     from prismbatch.peers import FCLPeer, fcl_standin_length
 
+    load_start = _loadavg()
     rng = np.random.default_rng([args.seed, n, list(POSE_SETS).index(pose_name)])
     pos_a, rot_a, pos_b, rot_b = POSE_SETS[pose_name](rng, args.n_pairs)
     a = pb.Prism.regular(n, RADIUS_A)
@@ -400,8 +401,14 @@ def bench_cell(n, pose_name, args, all_threads, ref, log):
                     entry["lp_error"] = f"{type(exc).__name__}: {exc}"
             repro.append(entry)
 
+    lp = [e for e in repro if "verdict" in e]
+    for name in agreement:
+        mine = [e for e in lp if e["peer"] == name]
+        agreement[name]["lp_checked"] = len(mine)
+        agreement[name]["lp_pb_right"] = sum(e["verdict"].startswith("prismbatch agrees") for e in mine)
     info = {
         "n": n, "poses": pose_name,
+        "load_avg_1min_at_start": load_start,
         "hit_fraction": float(res_full.hit.mean()),
         "hit_fraction_subset": float(res_sub.hit.mean()),
         "case_counts": res_full.case_counts(),
@@ -460,6 +467,13 @@ def compile_times(log):
 # ---------------------------------------------------------------------------
 # machine info and output
 # ---------------------------------------------------------------------------
+def _loadavg():
+    try:
+        return float(os.getloadavg()[0])
+    except (OSError, AttributeError):
+        return None
+
+
 def _version(dist):
     try:
         return metadata.version(dist)
@@ -590,12 +604,26 @@ def markdown_report(results, infos, meta, comp):
 
         def d(name):
             x = ag.get(name)
-            return "–" if x is None else (f"{x['disagreements']} ({x['pb_hit_peer_miss']} / "
-                                          f"{x['pb_miss_peer_hit']})")
+            if x is None:
+                return "–"
+            s = f"{x['disagreements']} ({x['pb_hit_peer_miss']} / {x['pb_miss_peer_hit']})"
+            if x.get("lp_checked"):
+                s += f"; LP sides with pb in {x['lp_pb_right']}/{x['lp_checked']}"
+            return s
         L.append(f"| {n} | {pose} | {ag['fcl']['n']} | {info['standin_length']:.1f} | {d('fcl')} "
                  f"| {d('coal')} | {info['serial_vs_parallel_hit_mismatches']} "
                  f"| {info['status_vs_contact_hit_mismatches']} |")
     L.append("")
+    L.append("LP = exact margin of the semi-infinite bodies (tests/reference.py); where it sides "
+             "with prismbatch, the disagreement comes from the peers' finite stand-ins. "
+             "Reproducers: disagreements.json.\n")
+    busy = [f"{n}/{pose}" for (n, pose), rows in results.items()
+            if th > 1 and rows["pb_all_status"]["cpu_per_wall"] < 0.75 * th]
+    if busy:
+        L.append(f"**Warning:** all-thread runs used fewer than {0.75 * th:.1f} of {th} CPUs in "
+                 f"{', '.join(busy)}: other processes competing for cores, or the Numba cache "
+                 f"served the serial kernel for parallel=True. Load average (1 min) at start: "
+                 f"{meta['load_avg_1min_at_start']}.\n")
     if comp:
         L.append("### First call (Numba compile), fresh subprocess, 10 pairs\n")
         L.append("| kernel | cold: 1st − 2nd call (s) | cached: 1st − 2nd call (s) | import (s) |")
@@ -674,6 +702,9 @@ def main(argv=None):
         print(msg, file=sys.stderr, flush=True)
 
     t_start = time.perf_counter()
+    load_start = _loadavg()
+    if load_start is not None and load_start > 0.5:
+        log(f"warning: load average {load_start:.2f} before start; timings may be disturbed")
     all_threads = numba.get_num_threads()
     ref = _load_reference()
 
@@ -700,6 +731,8 @@ def main(argv=None):
         "compile_times": comp,
         "targets_fcl_over_pb_1t": TARGETS,
         "elapsed_s": time.perf_counter() - t_start,
+        "load_avg_1min_at_start": load_start,
+        "load_avg_1min_at_end": _loadavg(),
         "notes": [
             "pb 1T = Collider.collide(parallel=False) under numba.set_num_threads(1)",
             "pb all-T = Collider.collide(parallel=True) with all Numba threads",

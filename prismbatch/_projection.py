@@ -90,6 +90,8 @@ def pair_test(avx, avy, aeang, aetab, avang, ainv, sa, na, ra,
     top_v = bvy[sb + imax]
     top_h = hx * top_u + hy * top_v
     d3 = pz + top_h  # the paper's Δ3
+    if d3 < -tol and c <= 0.0:
+        return False, CASE_ABOVE, nan, nan, nan  # the common case: leave at once
     pr = math.hypot(px, py)
     wn = math.hypot(r02, r12)
     T = (pr + ra + rb + 2.0 * tol) / max(wn, 1e-150)

@@ -32,7 +32,7 @@ TESTS_DIR = os.path.dirname(os.path.abspath(__file__))
 if TESTS_DIR not in sys.path:
     sys.path.insert(0, TESTS_DIR)
 
-from reference import margin_lp  # noqa: E402
+from reference import margin_lp, ref_polygon_distance  # noqa: E402
 
 #: a's rotation in the ``facing`` pose set: local axes x, -y, -z (axis down).
 R_DOWN = np.diag([1.0, -1.0, -1.0])
@@ -314,6 +314,178 @@ def concat_pairs(*parts):
     if all(p.delta is not None for p in parts):
         out.delta = cat("delta")
     return out
+
+
+# ---------------------------------------------------------------------------
+# targeted configurations (shared by the agreement and contact tests)
+# ---------------------------------------------------------------------------
+
+
+def overlapping_pairs(rng, n, pose_set):
+    """Pairs whose b end-face centroid lies strictly inside a (so they overlap)."""
+    d = make_pairs(rng, n, pose_set, "smallmed")
+    ra = np.array([polygon_radius(p) for p in d.polys_a])
+    ca = d.pos_a + np.einsum("nij,nj->ni", d.rot_a[:, :, :2], np.array([polygon_centre(p) for p in d.polys_a]))
+    cb_local = np.array([polygon_centre(p) for p in d.polys_b])
+    depth = rng.uniform(0.05, 1.0, n) * ra
+    target = ca + depth[:, None] * d.rot_a[:, :, 2]
+    d.pos_b = target - np.einsum("nij,nj->ni", d.rot_b[:, :, :2], cb_local)
+    d.scale = pair_scale(d.polys_a, d.pos_a, d.rot_a, d.polys_b, d.pos_b, d.rot_b)
+    return d
+
+
+
+def separating_directions(rng, sa, sb, d, far, rounds=30):
+    """Unit directions u (N, 3) such that b moved by ``far * u`` misses a
+    (according to prismbatch); rows that never separate are left zero and
+    flagged False in the returned mask."""
+    import prismbatch as pb
+
+    n = len(d)
+    u = np.zeros((n, 3))
+    todo = np.ones(n, bool)
+    for _ in range(rounds):
+        if not todo.any():
+            break
+        cand = rng.normal(size=(n, 3))
+        cand /= np.linalg.norm(cand, axis=1, keepdims=True)
+        trial = np.where(todo[:, None], cand, u)
+        rf = pb.collide(sa, sb, d.pos_a, d.rot_a, d.pos_b + far[:, None] * trial, d.rot_b)
+        ok = todo & ~rf.hit
+        u[ok] = cand[ok]
+        todo &= ~ok
+    return u, ~todo
+
+
+def bisect_to_contact(sa, sb, d, u, far, steps=60):
+    """Bisection on prismbatch's own decision along b's translation s u,
+    from s = 0 (hit) to s = far (miss).  Returns (lo, hi): the last hit and
+    first miss.  The set of s at which the bodies meet is an interval (a
+    line through the convex Minkowski difference), so the boundary is unique."""
+    import prismbatch as pb
+
+    lo = np.zeros(len(d))
+    hi = np.asarray(far, float).copy()
+    for _ in range(steps):
+        mid = 0.5 * (lo + hi)
+        h = pb.collide(sa, sb, d.pos_a, d.rot_a, d.pos_b + mid[:, None] * u, d.rot_b).hit
+        lo = np.where(h, mid, lo)
+        hi = np.where(h, hi, mid)
+    return lo, hi
+
+
+# columns e_y, e_z, e_x: local +z (the axis) -> world +x, exactly
+_M_PERP = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+
+
+def perpendicular_pairs(rng, n, mode):
+    """a: axis exactly +z (rot_a = Rz(phi)); b: axis exactly horizontal.
+
+    mode "generic": b's end-face centroid at a random height in [-R, R];
+    mode "vertex": b's highest end-face vertex exactly on a's plane;
+    mode "edge": one edge of b exactly horizontal and on a's plane.
+    """
+    polys_a, polys_b, pos_a, rot_a, pos_b, rot_b = [], [], [], [], [], []
+    for _ in range(n):
+        A = random_polygon(rng, sample_vertex_count(rng, "smallmed"))
+        B = random_polygon(rng, sample_vertex_count(rng, "smallmed"))
+        Ra = rot_z(rng.uniform(0, 2 * np.pi))
+        if mode == "edge":
+            i = int(rng.integers(len(B)))
+            e = B[(i + 1) % len(B)] - B[i]
+            theta = np.pi - np.arctan2(e[1], e[0])  # edge i -> direction -x', normal +y'
+        else:
+            theta = rng.uniform(0, 2 * np.pi)
+        Rb = rot_z(rng.uniform(0, 2 * np.pi)) @ _M_PERP @ rot_z(theta)
+        Rb[2, 2] = 0.0  # b's axis exactly horizontal
+        pa = np.array([*rng.uniform(-2, 2, 2), rng.uniform(-2, 2)])
+        ra, rb = polygon_radius(A), polygon_radius(B)
+        ca = pa + Ra[:, :2] @ polygon_centre(A)
+        rho = 1.2 * (ra + rb) * np.sqrt(rng.uniform())
+        phi = rng.uniform(0, 2 * np.pi)
+        # horizontal placement of b's end-face centroid relative to a's
+        cb = ca + np.array([rho * np.cos(phi), rho * np.sin(phi), 0.0])
+        pb_ = cb - Rb[:, :2] @ polygon_centre(B)
+        if mode == "generic":
+            pb_[2] += rng.uniform(-1, 1) * max(ra, rb)
+        else:
+            zb = pb_[2] + (Rb[2, :2] @ B.T)
+            top = int(np.argmax(zb)) if mode == "vertex" else i
+            pb_[2] = pa[2] - Rb[2, :2] @ B[top]
+        polys_a.append(A)
+        polys_b.append(B)
+        pos_a.append(pa)
+        rot_a.append(Ra)
+        pos_b.append(pb_)
+        rot_b.append(Rb)
+    d = PairData(polys_a, polys_b, np.array(pos_a), np.array(rot_a), np.array(pos_b), np.array(rot_b))
+    d.scale = pair_scale(d.polys_a, d.pos_a, d.rot_a, d.polys_b, d.pos_b, d.rot_b)
+    return d
+
+
+
+def vertical_pairs(rng, n, relation, height, *, with_gap=True):
+    """a: axis exactly +z; b: axis exactly +z ("parallel") or -z ("antiparallel").
+
+    ``height``: "coplanar" (b's end face in a's end plane) or "random".
+    Polygon placements: random (about half overlap), touching at a vertex
+    (b = a point-reflected through one of its vertices), touching along an
+    edge (reflected through an edge midpoint), or such a touching placement
+    pushed 1e-3 R apart / together.
+    Returns the pairs and the analytic Euclidean gap of the bodies.
+    """
+    polys_a, polys_b, pos_a, rot_a, pos_b, rot_b, gaps = [], [], [], [], [], [], []
+    flip = np.diag([1.0, -1.0, -1.0])
+    for k in range(n):
+        A = random_polygon(rng, sample_vertex_count(rng, "small"), offset=0.0)
+        phi = rng.uniform(0, 2 * np.pi)
+        Ra = rot_z(phi)
+        pa = np.array([0.0, 0.0, rng.uniform(-1, 1)])
+        Aw = A @ Ra[:2, :2].T  # a's polygon in world xy (about pa)
+        ra = polygon_radius(A)
+        style = k % 4
+        if style == 0:  # independent polygon, random placement
+            Bw = random_polygon(rng, sample_vertex_count(rng, "small"), offset=0.0)
+            Bw = Bw + rng.uniform(-1, 1, 2) * 1.1 * (ra + polygon_radius(Bw))
+        else:
+            i = int(rng.integers(len(Aw)))
+            if style == 1:  # vertex contact
+                m = Aw[i]
+            else:  # edge contact
+                m = 0.5 * (Aw[i] + Aw[(i + 1) % len(Aw)])
+            Bw = 2.0 * m - Aw
+            if style == 3:  # pushed apart or together along the outward direction
+                out = m - polygon_centre(Aw)
+                out /= np.linalg.norm(out)
+                Bw = Bw + rng.choice([-1.0, 1.0]) * 1e-3 * ra * out
+        if relation == "parallel":
+            Rb = rot_z(rng.uniform(0, 2 * np.pi))
+        else:
+            Rb = rot_z(rng.uniform(0, 2 * np.pi)) @ flip
+        # b's local polygon such that Rb maps it onto Bw exactly enough
+        B = Bw @ Rb[:2, :2]  # rows: Rb2^T w (Rb2 orthonormal)
+        Bw_exact = B @ Rb[:2, :2].T
+        if height == "coplanar":
+            zb = pa[2]
+        else:
+            zb = pa[2] + rng.uniform(-1, 1) * ra
+        pb_ = np.array([0.0, 0.0, zb])
+        dist2d = ref_polygon_distance(Aw, Bw_exact) if with_gap else np.nan
+        if relation == "parallel" or zb >= pa[2]:
+            gap = dist2d
+        else:  # antiparallel, b's end face below a's: separated vertically too
+            gap = np.hypot(dist2d, pa[2] - zb)
+        polys_a.append(A)
+        polys_b.append(B)
+        pos_a.append(pa)
+        rot_a.append(Ra)
+        pos_b.append(pb_)
+        rot_b.append(Rb)
+        gaps.append(gap)
+    d = PairData(polys_a, polys_b, np.array(pos_a), np.array(rot_a), np.array(pos_b), np.array(rot_b))
+    d.scale = pair_scale(d.polys_a, d.pos_a, d.rot_a, d.polys_b, d.pos_b, d.rot_b)
+    return d, np.array(gaps)
+
 
 
 # ---------------------------------------------------------------------------

@@ -181,11 +181,14 @@ def margin_lp(xy_a, pos_a, rot_a, xy_b, pos_b, rot_b, *, length_a=None,
     b = np.array(rhs_a + rhs_b, dtype=float)
     c = np.array([0.0, 0.0, 0.0, -1.0])
     bounds = [(None, None)] * 3 + [(None, 1e3)]
-    res = linprog(c, A_ub=A, b_ub=b, bounds=bounds, method="highs",
-                  options=_HIGHS_OPTIONS)
-    if res.status != 0:
-        raise RuntimeError(f"margin_lp: HiGHS status {res.status}: {res.message}")
-    return float(res.x[3]) * scale
+    # Tight tolerances first; HiGHS occasionally gives up on nearly degenerate
+    # poses (status 4), so fall back to its other solvers before failing.
+    attempts = (("highs", _HIGHS_OPTIONS), ("highs-ds", _HIGHS_OPTIONS), ("highs-ipm", {}), ("highs-ds", {}))
+    for method, options in attempts:
+        res = linprog(c, A_ub=A, b_ub=b, bounds=bounds, method=method, options=options)
+        if res.status == 0:
+            return float(res.x[3]) * scale
+    raise RuntimeError(f"margin_lp: HiGHS status {res.status}: {res.message}")
 
 
 def margin_lp_batch(xy_a, pos_a, rot_a, xy_b, pos_b, rot_b, *, length_a=None,

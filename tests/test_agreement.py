@@ -36,24 +36,25 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from scipy.spatial.transform import Rotation
 
 import prismbatch as pb
 from conftest import (
     LARGE_COUNTS,
     PairData,
+    bisect_to_contact,
+    concat_pairs,
     hash_str,
     make_pairs,
     margins,
+    overlapping_pairs,
     pair_scale,
-    polygon_centre,
-    polygon_radius,
-    random_polygon,
+    perpendicular_pairs,
     random_rotations,
-    rot_z,
-    sample_vertex_count,
+    polygon_radius,
+    separating_directions,
+    vertical_pairs,
 )
-from reference import margin_lp, ref_halfline_distance, ref_polygon_distance, ref_strip_distance
+from reference import margin_lp, ref_halfline_distance, ref_strip_distance
 
 RTOL = 1e-9
 LP_REL = 1e-7  # see the module docstring: reference accuracy floor of the band
@@ -143,19 +144,6 @@ def test_random_pairs_agree_with_lp(pose_set, family, n_pairs):
 # ---------------------------------------------------------------------------
 
 
-def _overlapping_start(rng, n, pose_set):
-    """Pairs whose b end-face centroid lies strictly inside a (so they overlap)."""
-    d = make_pairs(rng, n, pose_set, "smallmed")
-    ra = np.array([polygon_radius(p) for p in d.polys_a])
-    ca = d.pos_a + np.einsum("nij,nj->ni", d.rot_a[:, :, :2], np.array([polygon_centre(p) for p in d.polys_a]))
-    cb_local = np.array([polygon_centre(p) for p in d.polys_b])
-    depth = rng.uniform(0.05, 1.0, n) * ra
-    target = ca + depth[:, None] * d.rot_a[:, :, 2]
-    d.pos_b = target - np.einsum("nij,nj->ni", d.rot_b[:, :, :2], cb_local)
-    d.scale = pair_scale(d.polys_a, d.pos_a, d.rot_a, d.polys_b, d.pos_b, d.rot_b)
-    return d
-
-
 def test_near_contact_pairs_found_by_bisection():
     """Move b along a random direction from an overlapping pose until
     prismbatch says "no hit" (bisection, 60 steps), then step 1e-3 R back and
@@ -164,12 +152,7 @@ def test_near_contact_pairs_found_by_bisection():
     bodies meet is convex (a line through the Minkowski difference), so the
     boundary found is unique."""
     rng = np.random.default_rng(77)
-    n_each = 150
-    d = _overlapping_start(rng, n_each, "facing")
-    d2 = _overlapping_start(rng, n_each, "free")
-    from conftest import concat_pairs
-
-    d = concat_pairs(d, d2)
+    d = concat_pairs(overlapping_pairs(rng, 150, "facing"), overlapping_pairs(rng, 150, "free"))
     n = len(d)
     sa, sb = pb.PrismSet(d.polys_a), pb.PrismSet(d.polys_b)
     ra = np.array([polygon_radius(p) for p in d.polys_a])
@@ -179,109 +162,44 @@ def test_near_contact_pairs_found_by_bisection():
     r0 = pb.collide(sa, sb, d.pos_a, d.rot_a, d.pos_b, d.rot_b)
     assert r0.hit.all(), "b's end-face centroid inside a must be a hit"
 
-    # Random directions along which b eventually separates from a.
     far = 4.0 * (ra + rb)
-    u = np.zeros((n, 3))
-    todo = np.ones(n, bool)
-    for _ in range(30):
-        if not todo.any():
-            break
-        cand = rng.normal(size=(n, 3))
-        cand /= np.linalg.norm(cand, axis=1, keepdims=True)
-        trial = np.where(todo[:, None], cand, u)
-        rf = pb.collide(sa, sb, d.pos_a, d.rot_a, d.pos_b + far[:, None] * trial, d.rot_b)
-        ok = todo & ~rf.hit
-        u[ok] = cand[ok]
-        todo &= ~ok
-    keep = ~todo
+    u, keep = separating_directions(rng, sa, sb, d, far)
     assert keep.sum() >= 0.95 * n
-
-    lo = np.zeros(n)
-    hi = far.copy()
-    for _ in range(60):
-        mid = 0.5 * (lo + hi)
-        h = pb.collide(sa, sb, d.pos_a, d.rot_a, d.pos_b + mid[:, None] * u, d.rot_b).hit
-        lo = np.where(h, mid, lo)
-        hi = np.where(h, hi, mid)
+    lo, hi = bisect_to_contact(sa, sb, d, u, far)
 
     idx = np.flatnonzero(keep)
-    off = 1e-3 * R
-    results = {}
-    for sign, name in ((-1.0, "inside"), (1.0, "outside")):
-        s = hi + sign * off
-        pos_b = d.pos_b + s[:, None] * u
-        r = pb.collide(sa, sb, d.pos_a, d.rot_a, pos_b, d.rot_b)
-        delta = np.array([margin_lp(d.polys_a[k], d.pos_a[k], d.rot_a[k], d.polys_b[k], pos_b[k], d.rot_b[k])
-                          for k in idx])
-        scale = pair_scale([d.polys_a[k] for k in idx], d.pos_a[idx], d.rot_a[idx],
-                           [d.polys_b[k] for k in idx], pos_b[idx], d.rot_b[idx])
-        check_agreement(delta, r.hit[idx], scale, f"near-contact/{name}", case=r.case[idx], max_band_frac=0.02)
-        results[name] = (delta, band_of(scale))
-    din, bin_ = results["inside"]
-    dout, bout = results["outside"]
-    straddle = (din > bin_) & (dout < -bout)
-    assert straddle.mean() >= 0.95, (
-        f"only {straddle.sum()} of {len(idx)} bisection boundaries are real contact boundaries")
+    for rel, min_straddle, max_band in ((1e-3, 0.95, 0.02), (1e-5, 0.8, 0.1)):
+        off = rel * R
+        results = {}
+        for sign, name in ((-1.0, "inside"), (1.0, "outside")):
+            s = hi + sign * off
+            pos_b = d.pos_b + s[:, None] * u
+            r = pb.collide(sa, sb, d.pos_a, d.rot_a, pos_b, d.rot_b)
+            delta = np.array([margin_lp(d.polys_a[k], d.pos_a[k], d.rot_a[k], d.polys_b[k], pos_b[k],
+                                        d.rot_b[k]) for k in idx])
+            scale = pair_scale([d.polys_a[k] for k in idx], d.pos_a[idx], d.rot_a[idx],
+                               [d.polys_b[k] for k in idx], pos_b[idx], d.rot_b[idx])
+            check_agreement(delta, r.hit[idx], scale, f"near-contact/{rel:g}R/{name}", case=r.case[idx],
+                            max_band_frac=max_band)
+            results[name] = (delta, band_of(scale))
+        din, bin_ = results["inside"]
+        dout, bout = results["outside"]
+        straddle = (din > bin_) & (dout < -bout)
+        assert straddle.mean() >= min_straddle, (
+            f"offset {rel:g} R: only {straddle.sum()} of {len(idx)} bisection boundaries are real "
+            f"contact boundaries")
 
 
 # ---------------------------------------------------------------------------
 # exactly perpendicular axes (cases 7, 8, 9)
 # ---------------------------------------------------------------------------
 
-# columns e_y, e_z, e_x: local +z (the axis) -> world +x, exactly
-_M_PERP = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
-
-
-def _perp_pairs(rng, n, mode):
-    """a: axis exactly +z (rot_a = Rz(phi)); b: axis exactly horizontal.
-
-    mode "generic": b's end-face centroid at a random height in [-R, R];
-    mode "vertex": b's highest end-face vertex exactly on a's plane;
-    mode "edge": one edge of b exactly horizontal and on a's plane.
-    """
-    polys_a, polys_b, pos_a, rot_a, pos_b, rot_b = [], [], [], [], [], []
-    for _ in range(n):
-        A = random_polygon(rng, sample_vertex_count(rng, "smallmed"))
-        B = random_polygon(rng, sample_vertex_count(rng, "smallmed"))
-        Ra = rot_z(rng.uniform(0, 2 * np.pi))
-        if mode == "edge":
-            i = int(rng.integers(len(B)))
-            e = B[(i + 1) % len(B)] - B[i]
-            theta = np.pi - np.arctan2(e[1], e[0])  # edge i -> direction -x', normal +y'
-        else:
-            theta = rng.uniform(0, 2 * np.pi)
-        Rb = rot_z(rng.uniform(0, 2 * np.pi)) @ _M_PERP @ rot_z(theta)
-        Rb[2, 2] = 0.0  # b's axis exactly horizontal
-        pa = np.array([*rng.uniform(-2, 2, 2), rng.uniform(-2, 2)])
-        ra, rb = polygon_radius(A), polygon_radius(B)
-        ca = pa + Ra[:, :2] @ polygon_centre(A)
-        rho = 1.2 * (ra + rb) * np.sqrt(rng.uniform())
-        phi = rng.uniform(0, 2 * np.pi)
-        # horizontal placement of b's end-face centroid relative to a's
-        cb = ca + np.array([rho * np.cos(phi), rho * np.sin(phi), 0.0])
-        pb_ = cb - Rb[:, :2] @ polygon_centre(B)
-        if mode == "generic":
-            pb_[2] += rng.uniform(-1, 1) * max(ra, rb)
-        else:
-            zb = pb_[2] + (Rb[2, :2] @ B.T)
-            top = int(np.argmax(zb)) if mode == "vertex" else i
-            pb_[2] = pa[2] - Rb[2, :2] @ B[top]
-        polys_a.append(A)
-        polys_b.append(B)
-        pos_a.append(pa)
-        rot_a.append(Ra)
-        pos_b.append(pb_)
-        rot_b.append(Rb)
-    d = PairData(polys_a, polys_b, np.array(pos_a), np.array(rot_a), np.array(pos_b), np.array(rot_b))
-    d.scale = pair_scale(d.polys_a, d.pos_a, d.rot_a, d.polys_b, d.pos_b, d.rot_b)
-    return d
-
 
 @pytest.mark.parametrize("mode", ["generic", "vertex", "edge"])
 def test_perpendicular_axes(mode):
     rng = np.random.default_rng(hash_str(f"perp/{mode}") % 2**32)
     n = 300
-    d = _perp_pairs(rng, n, mode)
+    d = perpendicular_pairs(rng, n, mode)
     assert np.all(np.einsum("ni,ni->n", d.rot_a[:, :, 2], d.rot_b[:, :, 2]) == 0.0)
     r = collide_pairs(d)
     d.delta = margins(d.polys_a, d.pos_a, d.rot_a, d.polys_b, d.pos_b, d.rot_b)
@@ -327,69 +245,6 @@ def test_perpendicular_axes(mode):
 # ---------------------------------------------------------------------------
 
 
-def _vertical_pairs(rng, n, relation, height):
-    """a: axis exactly +z; b: axis exactly +z ("parallel") or -z ("antiparallel").
-
-    ``height``: "coplanar" (b's end face in a's end plane) or "random".
-    Polygon placements: random (about half overlap), touching at a vertex
-    (b = a point-reflected through one of its vertices), touching along an
-    edge (reflected through an edge midpoint), or such a touching placement
-    pushed 1e-3 R apart / together.
-    Returns the pairs and the analytic Euclidean gap of the bodies.
-    """
-    polys_a, polys_b, pos_a, rot_a, pos_b, rot_b, gaps = [], [], [], [], [], [], []
-    flip = np.diag([1.0, -1.0, -1.0])
-    for k in range(n):
-        A = random_polygon(rng, sample_vertex_count(rng, "small"), offset=0.0)
-        phi = rng.uniform(0, 2 * np.pi)
-        Ra = rot_z(phi)
-        pa = np.array([0.0, 0.0, rng.uniform(-1, 1)])
-        Aw = A @ Ra[:2, :2].T  # a's polygon in world xy (about pa)
-        ra = polygon_radius(A)
-        style = k % 4
-        if style == 0:  # independent polygon, random placement
-            Bw = random_polygon(rng, sample_vertex_count(rng, "small"), offset=0.0)
-            Bw = Bw + rng.uniform(-1, 1, 2) * 1.1 * (ra + polygon_radius(Bw))
-        else:
-            i = int(rng.integers(len(Aw)))
-            if style == 1:  # vertex contact
-                m = Aw[i]
-            else:  # edge contact
-                m = 0.5 * (Aw[i] + Aw[(i + 1) % len(Aw)])
-            Bw = 2.0 * m - Aw
-            if style == 3:  # pushed apart or together along the outward direction
-                out = m - polygon_centre(Aw)
-                out /= np.linalg.norm(out)
-                Bw = Bw + rng.choice([-1.0, 1.0]) * 1e-3 * ra * out
-        if relation == "parallel":
-            Rb = rot_z(rng.uniform(0, 2 * np.pi))
-        else:
-            Rb = rot_z(rng.uniform(0, 2 * np.pi)) @ flip
-        # b's local polygon such that Rb maps it onto Bw exactly enough
-        B = Bw @ Rb[:2, :2]  # rows: Rb2^T w (Rb2 orthonormal)
-        Bw_exact = B @ Rb[:2, :2].T
-        if height == "coplanar":
-            zb = pa[2]
-        else:
-            zb = pa[2] + rng.uniform(-1, 1) * ra
-        pb_ = np.array([0.0, 0.0, zb])
-        dist2d = ref_polygon_distance(Aw, Bw_exact)
-        if relation == "parallel" or zb >= pa[2]:
-            gap = dist2d
-        else:  # antiparallel, b's end face below a's: separated vertically too
-            gap = np.hypot(dist2d, pa[2] - zb)
-        polys_a.append(A)
-        polys_b.append(B)
-        pos_a.append(pa)
-        rot_a.append(Ra)
-        pos_b.append(pb_)
-        rot_b.append(Rb)
-        gaps.append(gap)
-    d = PairData(polys_a, polys_b, np.array(pos_a), np.array(rot_a), np.array(pos_b), np.array(rot_b))
-    d.scale = pair_scale(d.polys_a, d.pos_a, d.rot_a, d.polys_b, d.pos_b, d.rot_b)
-    return d, np.array(gaps)
-
-
 def _check_gap_truth(d, gaps, r, label):
     tol = RTOL * d.scale
     must_hit = gaps <= 1e-3 * tol  # touching up to rounding: well within tol
@@ -408,7 +263,7 @@ def _check_gap_truth(d, gaps, r, label):
 @pytest.mark.parametrize("height", ["coplanar", "random"])
 def test_parallel_and_antiparallel_axes(relation, height):
     rng = np.random.default_rng(hash_str(f"vertical/{relation}/{height}") % 2**32)
-    d, gaps = _vertical_pairs(rng, 240, relation, height)
+    d, gaps = vertical_pairs(rng, 240, relation, height)
     assert np.all(np.abs(np.einsum("ni,ni->n", d.rot_a[:, :, 2], d.rot_b[:, :, 2])) == 1.0)
     r = collide_pairs(d)
     _check_gap_truth(d, gaps, r, f"{relation}/{height}")
@@ -428,7 +283,7 @@ def test_coplanar_end_faces_under_rigid_transform():
     polygons) seen through a random rigid transform: coplanarity now only
     holds up to rounding, and the decision must follow the 2-D gap."""
     rng = np.random.default_rng(4242)
-    d, gaps = _vertical_pairs(rng, 240, "antiparallel", "coplanar")
+    d, gaps = vertical_pairs(rng, 240, "antiparallel", "coplanar")
     Q = random_rotations(rng, len(gaps))
     t = rng.uniform(-10, 10, (len(gaps), 3))
     pos_a = np.einsum("nij,nj->ni", Q, d.pos_a) + t
