@@ -26,7 +26,7 @@ import math
 
 from numba import njit
 
-from ._planar import chord, extreme_vertex, gjk, point_polygon_distance  # noqa: F401
+from ._planar import extreme_vertex, gjk, point_polygon_distance
 
 # Case numbers. 1-9 are the paper's; 10 and 11 extend it to d_a.d_b > 0.
 CASE_ABOVE = 1

@@ -44,7 +44,7 @@ def build_parser():
                    help="pose distribution: the paper's facing scene or uniform random (default: facing)")
     d.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
     d.add_argument("--threads", type=int, default=0,
-                   help="1 for the serial kernel; 0 for all of Numba's threads (default: 0)")
+                   help="1 for the serial kernel, k > 1 for k threads, 0 for all of Numba's threads (default: 0)")
     d.add_argument("--contact", action="store_true", help="also compute contact points")
     d.add_argument("--no-progress", action="store_true", help="no progress bar")
     d.set_defaults(func=_demo)
@@ -58,11 +58,11 @@ def main(argv=None):
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
-    if getattr(args, "threads", 0) > 1:
-        import numba
-
-        numba.set_num_threads(min(args.threads, numba.config.NUMBA_NUM_THREADS))
     try:
+        if getattr(args, "threads", 0) > 1:
+            import numba
+
+            numba.set_num_threads(args.threads)  # raises ValueError above the available threads
         return args.func(args)
     except (ValueError, TypeError) as exc:
         print(f"prismbatch: error: {exc}", file=sys.stderr)

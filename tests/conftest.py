@@ -131,6 +131,36 @@ def sample_vertex_count(rng, family):
     raise ValueError(family)
 
 
+def collinear_polygon(rng, *, radius=None):
+    """Irregular/regular 3..7-gon with 1..59 extra vertices on every edge
+    (exactly collinear up to rounding: straight angles are legal input)."""
+    base = random_polygon(rng, int(rng.integers(3, 8)), radius=radius)
+    k = int(rng.integers(2, 61))
+    t = np.linspace(0.0, 1.0, k, endpoint=False)[:, None]
+    nxt = np.roll(base, -1, axis=0)
+    return np.concatenate([a + t * (b - a) for a, b in zip(base, nxt)])
+
+
+def skinny_polygon(rng, *, radius=None):
+    """Random convex 3..39-gon squashed to an aspect ratio of 1e-5..1e-1."""
+    p = random_polygon(rng, int(rng.integers(3, 40)), radius=radius, offset=0.0)
+    th = rng.uniform(0, 2 * np.pi)
+    c, s = np.cos(th), np.sin(th)
+    rot = np.array([[c, -s], [s, c]])
+    squash = np.diag([1.0, 10 ** rng.uniform(-5, -1)])
+    return p @ (rot @ squash @ rot.T).T + rng.uniform(-0.3, 0.3, 2)
+
+
+SPECIAL_FAMILIES = {"collinear": collinear_polygon, "skinny": skinny_polygon}
+
+
+def family_polygon(rng, family, *, regular=None):
+    """One random polygon of a family (see sample_vertex_count and SPECIAL_FAMILIES)."""
+    if family in SPECIAL_FAMILIES:
+        return SPECIAL_FAMILIES[family](rng)
+    return random_polygon(rng, sample_vertex_count(rng, family), regular=regular)
+
+
 def polygon_pairs(rng, n_pairs, family, *, regular=None):
     """Lists (polys_a, polys_b) of per-pair polygons for a family.
 
@@ -146,8 +176,8 @@ def polygon_pairs(rng, n_pairs, family, *, regular=None):
                 fb = "smallmed"
             else:
                 fa = "smallmed"
-        pa.append(random_polygon(rng, sample_vertex_count(rng, fa), regular=regular))
-        pb.append(random_polygon(rng, sample_vertex_count(rng, fb), regular=regular))
+        pa.append(family_polygon(rng, fa, regular=regular))
+        pb.append(family_polygon(rng, fb, regular=regular))
     return pa, pb
 
 
@@ -334,12 +364,11 @@ def overlapping_pairs(rng, n, pose_set):
     return d
 
 
-
 def separating_directions(rng, sa, sb, d, far, rounds=30):
     """Unit directions u (N, 3) such that b moved by ``far * u`` misses a
     (according to prismbatch); rows that never separate are left zero and
     flagged False in the returned mask."""
-    import prismbatch as pb
+    import prismbatch as pb  # local: conftest itself must not need the package
 
     n = len(d)
     u = np.zeros((n, 3))
@@ -378,13 +407,18 @@ def bisect_to_contact(sa, sb, d, u, far, steps=60):
 _M_PERP = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
 
 
-def perpendicular_pairs(rng, n, mode):
-    """a: axis exactly +z (rot_a = Rz(phi)); b: axis exactly horizontal.
+def perpendicular_pairs(rng, n, mode, depression=0.0):
+    """a: axis exactly +z (rot_a = Rz(phi)); b: axis exactly horizontal, or
+    with ``depression`` (radians) pointing that much below the horizontal,
+    i.e. away from a's body.
 
     mode "generic": b's end-face centroid at a random height in [-R, R];
     mode "vertex": b's highest end-face vertex exactly on a's plane;
     mode "edge": one edge of b exactly horizontal and on a's plane.
     """
+    cd, sd = np.cos(depression), np.sin(depression)
+    # rotation about world y taking +x to (cos, 0, -sin): b's axis points down
+    pitch = np.array([[cd, 0.0, sd], [0.0, 1.0, 0.0], [-sd, 0.0, cd]])
     polys_a, polys_b, pos_a, rot_a, pos_b, rot_b = [], [], [], [], [], []
     for _ in range(n):
         A = random_polygon(rng, sample_vertex_count(rng, "smallmed"))
@@ -396,8 +430,9 @@ def perpendicular_pairs(rng, n, mode):
             theta = np.pi - np.arctan2(e[1], e[0])  # edge i -> direction -x', normal +y'
         else:
             theta = rng.uniform(0, 2 * np.pi)
-        Rb = rot_z(rng.uniform(0, 2 * np.pi)) @ _M_PERP @ rot_z(theta)
-        Rb[2, 2] = 0.0  # b's axis exactly horizontal
+        Rb = rot_z(rng.uniform(0, 2 * np.pi)) @ pitch @ _M_PERP @ rot_z(theta)
+        if depression == 0.0:
+            Rb[2, 2] = 0.0  # b's axis exactly horizontal
         pa = np.array([*rng.uniform(-2, 2, 2), rng.uniform(-2, 2)])
         ra, rb = polygon_radius(A), polygon_radius(B)
         ca = pa + Ra[:, :2] @ polygon_centre(A)
@@ -412,6 +447,11 @@ def perpendicular_pairs(rng, n, mode):
             zb = pb_[2] + (Rb[2, :2] @ B.T)
             top = int(np.argmax(zb)) if mode == "vertex" else i
             pb_[2] = pa[2] - Rb[2, :2] @ B[top]
+            if depression != 0.0:
+                # put the top vertex over a random point near a's polygon
+                rho = 1.3 * ra * np.sqrt(rng.uniform())
+                goal = ca[:2] + rho * np.array([np.cos(phi), np.sin(phi)])
+                pb_[:2] += goal - (pb_[:2] + Rb[:2, :2] @ B[top])
         polys_a.append(A)
         polys_b.append(B)
         pos_a.append(pa)
@@ -421,7 +461,6 @@ def perpendicular_pairs(rng, n, mode):
     d = PairData(polys_a, polys_b, np.array(pos_a), np.array(rot_a), np.array(pos_b), np.array(rot_b))
     d.scale = pair_scale(d.polys_a, d.pos_a, d.rot_a, d.polys_b, d.pos_b, d.rot_b)
     return d
-
 
 
 def vertical_pairs(rng, n, relation, height, *, with_gap=True):
@@ -485,7 +524,6 @@ def vertical_pairs(rng, n, relation, height, *, with_gap=True):
     d = PairData(polys_a, polys_b, np.array(pos_a), np.array(rot_a), np.array(pos_b), np.array(rot_b))
     d.scale = pair_scale(d.polys_a, d.pos_a, d.rot_a, d.polys_b, d.pos_b, d.rot_b)
     return d, np.array(gaps)
-
 
 
 # ---------------------------------------------------------------------------

@@ -317,7 +317,9 @@ def run_cases(kind, n_cases, tol, big_tol=None, seed_name=None):
         P = random_test_polygon(rng, max_n=200 if kind != "polygon" else 120)
         g = PolyGeom(P)
         q = gen(rng, g, big_tol)
-        hit, contact = call(P, q, tol)
+        # the package accepts either orientation: pass it clockwise half the time
+        P_in = P[::-1].copy() if rng.random() < 0.5 else P
+        hit, contact = call(P_in, q, tol)
         dist = ref(P, q)
         if big_tol is None:
             must_hit, must_miss = dist <= HIT_MAX, dist > MISS_MIN
@@ -411,7 +413,7 @@ def test_point_polygon_against_reference():
         P = random_test_polygon(rng)
         g = PolyGeom(P)
         x = gen_point(rng, g)
-        hit, sd = planar.point_polygon(P, x, TOL)
+        hit, sd = planar.point_polygon(P[::-1].copy() if case % 2 else P, x, TOL)
         msgs = []
         if hit != (sd >= -TOL):
             msgs.append(f"hit={hit} but signed distance {sd:.3e} (tol {TOL})")
@@ -457,8 +459,9 @@ def test_point_polygon_against_reference():
 
 def test_point_polygon_vertices_and_edges_exact():
     """Every vertex and edge midpoint of a few polygons is a hit at tol = 0
-    up to rounding (signed distance >= -1e-12 r), and the signed distance of
-    a point pushed out by h along an edge normal is in [-h, 0)."""
+    up to rounding (signed distance >= -1e-12 r), the signed distance of a
+    point pushed out by h along an edge normal is in [-h, 0), and the area
+    centroid is inside with at least its distance to the boundary."""
     rng = seeded("point-exact")
     for _ in range(40):
         P = random_test_polygon(rng)
@@ -471,3 +474,7 @@ def test_point_polygon_vertices_and_edges_exact():
             x = g.edge_point(rng, i) + h * g.en[i]
             hit, sd = planar.point_polygon(P, x, 0.0)
             assert not hit and -h * (1 + 1e-6) <= sd < 0, (P.tolist(), x.tolist(), sd)
+        # the area centroid itself (polar angle undefined): inside, positive
+        hit, sd = planar.point_polygon(P, g.c, 0.0)
+        n2, h2 = polygon_halfplanes(P)
+        assert hit and sd >= np.min(h2 - n2 @ g.c) * (1 - 1e-9), (P.tolist(), sd)
