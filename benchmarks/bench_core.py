@@ -48,6 +48,8 @@ from pathlib import Path
 
 import numpy as np
 
+from prismbatch.sampling import facing_poses, free_poses
+
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parent
 
@@ -61,61 +63,14 @@ TARGETS = {36: 10.0, 3600: 20.0}  # FCL / prismbatch(1 thread), per pair
 # ---------------------------------------------------------------------------
 # pose generators
 # ---------------------------------------------------------------------------
-def _quat_to_matrix(q):
-    """(N, 4) unit quaternions (w, x, y, z) -> (N, 3, 3) rotation matrices."""
-    w, x, y, z = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
-    R = np.empty((len(q), 3, 3))
-    R[:, 0, 0] = 1 - 2 * (y * y + z * z)
-    R[:, 0, 1] = 2 * (x * y - w * z)
-    R[:, 0, 2] = 2 * (x * z + w * y)
-    R[:, 1, 0] = 2 * (x * y + w * z)
-    R[:, 1, 1] = 1 - 2 * (x * x + z * z)
-    R[:, 1, 2] = 2 * (y * z - w * x)
-    R[:, 2, 0] = 2 * (x * z - w * y)
-    R[:, 2, 1] = 2 * (y * z + w * x)
-    R[:, 2, 2] = 1 - 2 * (x * x + y * y)
-    return R
-
-
-def random_rotations(rng, n):
-    """Uniform (Haar) random rotations: normalised 4-D Gaussian quaternions."""
-    q = rng.standard_normal((n, 4))
-    q /= np.linalg.norm(q, axis=1, keepdims=True)
-    return _quat_to_matrix(q)
-
-
-def _axis_angle(axis, angle):
-    """(N, 3) unit axes, (N,) angles -> (N, 3, 3) rotations."""
-    h = 0.5 * angle
-    q = np.concatenate([np.cos(h)[:, None], np.sin(h)[:, None] * axis], axis=1)
-    return _quat_to_matrix(q)
-
-
 def poses_facing(rng, n):
-    """Paper-like scene: a at the origin pointing down, b pointing up, tilted.
-
-    a: p = 0, R = diag(1, -1, -1) (body is z <= 0, end face at z = 0).
-    b: random spin about its own axis, then a tilt of up to 15 degrees about a
-    random horizontal axis; centre uniform in |x|, |y| <= 6, z in [-1.5, 3].
-    """
-    pos_a = np.zeros((n, 3))
-    rot_a = np.broadcast_to(np.diag([1.0, -1.0, -1.0]), (n, 3, 3)).copy()
-    spin = _axis_angle(np.tile([0.0, 0.0, 1.0], (n, 1)), rng.uniform(0.0, 2 * np.pi, n))
-    phi = rng.uniform(0.0, 2 * np.pi, n)
-    tilt_axis = np.stack([np.cos(phi), np.sin(phi), np.zeros(n)], axis=1)
-    tilt = _axis_angle(tilt_axis, np.deg2rad(rng.uniform(0.0, FACING_MAX_TILT_DEG, n)))
-    rot_b = tilt @ spin
-    pos_b = rng.uniform([-6.0, -6.0, -1.5], [6.0, 6.0, 3.0], (n, 3))
-    return pos_a, rot_a, pos_b, rot_b
+    """Paper-like scene (prismbatch.sampling.facing_poses): a pointing down, b up, tilted <= 15 deg."""
+    return facing_poses(n, rng, radius=RADIUS_B, max_tilt=np.deg2rad(FACING_MAX_TILT_DEG))
 
 
 def poses_free(rng, n):
-    """Uniform random rotations for both, centres uniform in [-5, 5]^3."""
-    pos_a = rng.uniform(-5.0, 5.0, (n, 3))
-    rot_a = random_rotations(rng, n)
-    pos_b = rng.uniform(-5.0, 5.0, (n, 3))
-    rot_b = random_rotations(rng, n)
-    return pos_a, rot_a, pos_b, rot_b
+    """Uniform random rotations for both, centres uniform in [-5, 5]^3 (prismbatch.sampling.free_poses)."""
+    return free_poses(n, rng, radius=RADIUS_B)
 
 
 POSE_SETS = {"facing": poses_facing, "free": poses_free}
@@ -194,89 +149,6 @@ class threads:
 # ---------------------------------------------------------------------------
 # peers
 # ---------------------------------------------------------------------------
-def _as_items(pos_a, rot_a, pos_b, rot_b):
-    """Per-pair contiguous float64 arrays, prepared outside the timed loops."""
-    f = lambda x: np.ascontiguousarray(x, dtype=np.float64)  # noqa: E731
-    return [(f(rot_a[k]), f(pos_a[k]), f(rot_b[k]), f(pos_b[k])) for k in range(len(pos_a))]
-
-
-def fcl_loop(peer, items):
-    """python-fcl: per query 2x setTransform + collide with a fresh request/result."""
-    import fcl
-    oa, ob = peer.obj_a, peer.obj_b
-    Transform, Request, Result, collide = (fcl.Transform, fcl.CollisionRequest,
-                                           fcl.CollisionResult, fcl.collide)
-    out = np.empty(len(items), dtype=bool)
-    for k, (ra, pa, rb, pb_) in enumerate(items):
-        oa.setTransform(Transform(ra, pa))
-        ob.setTransform(Transform(rb, pb_))
-        res = Result()
-        collide(oa, ob, Request(), res)
-        out[k] = res.is_collision
-    return out
-
-
-def coal_loop(peer, items):
-    """coal: same per-query work as fcl_loop."""
-    import coal
-    oa, ob = peer.obj_a, peer.obj_b
-    Transform, Request, Result, collide = (coal.Transform3s, coal.CollisionRequest,
-                                           coal.CollisionResult, coal.collide)
-    out = np.empty(len(items), dtype=bool)
-    for k, (ra, pa, rb, pb_) in enumerate(items):
-        oa.setTransform(Transform(ra, pa))
-        ob.setTransform(Transform(rb, pb_))
-        res = Result()
-        collide(oa, ob, Request(), res)
-        out[k] = res.isCollision()
-    return out
-
-
-def coal_prism_strip(xy, length):
-    """coal.Convex of the extruded polygon with STRIP-triangulated caps.
-
-    prismbatch.peers.coal_prism fan-triangulates the caps, so one vertex per
-    cap gets n-1 neighbours and coal refuses polygons above ~255 vertices
-    ("Too many neighbors").  A zig-zag strip gives every vertex at most a
-    handful of neighbours; the solid is the same.
-    """
-    import coal
-    from prismbatch.peers import _prism_mesh  # vertices: 0..n-1 bottom, n..2n-1 top
-    verts, faces = _prism_mesh(xy, length)
-    n = len(verts) // 2
-    tris = []
-    i, j = 0, n - 1  # strip over the CCW polygon 0..n-1
-    while j - i >= 2:
-        tris.append((i, i + 1, j))
-        i += 1
-        if j - i >= 2:
-            tris.append((i, j - 1, j))
-            j -= 1
-    pts = coal.StdVec_Vec3s()
-    for v in verts:
-        pts.append(np.asarray(v, dtype=float))
-    out = coal.StdVec_Triangle()
-    for a, b, c in tris:
-        out.append(coal.Triangle(a, c, b))              # bottom cap, normal -z
-        out.append(coal.Triangle(n + a, n + b, n + c))  # top cap, normal +z
-    for f in faces[2:]:                                 # side quads (outward)
-        out.append(coal.Triangle(int(f[0]), int(f[1]), int(f[2])))
-        out.append(coal.Triangle(int(f[0]), int(f[2]), int(f[3])))
-    return coal.Convex(pts, out)
-
-
-class CoalStripPeer:
-    """Like prismbatch.peers.CoalPeer, with strip-triangulated caps."""
-
-    def __init__(self, xy_a, xy_b, length):
-        import coal
-        self.length = float(length)
-        self.geom_a = coal_prism_strip(xy_a, self.length)
-        self.geom_b = coal_prism_strip(xy_b, self.length)
-        self.obj_a = coal.CollisionObject(self.geom_a, coal.Transform3s())
-        self.obj_b = coal.CollisionObject(self.geom_b, coal.Transform3s())
-
-
 def _load_reference():
     """tests/reference.py (LP ground truth) if present and scipy is installed."""
     path = REPO / "tests" / "reference.py"
@@ -296,7 +168,7 @@ def _load_reference():
 # ---------------------------------------------------------------------------
 def bench_cell(n, pose_name, args, all_threads, ref, log, waiter):
     import prismbatch as pb
-    from prismbatch.peers import FCLPeer, fcl_standin_length
+    from prismbatch.peers import CoalPeer, FCLPeer, fcl_standin_length
 
     load_start = _loadavg()
     snap0 = _cpu_snapshot()
@@ -376,16 +248,16 @@ def bench_cell(n, pose_name, args, all_threads, ref, log, waiter):
         rows["sub_pb_1t_status"] = measure(pb_call(*sub, False, False), rep, M)
 
     length = max(fcl_standin_length(a.xy, b.xy, sub[0][k], sub[2][k]) for k in range(M))
-    items = _as_items(*sub)
+    items = FCLPeer.prepare(*sub)
     peer_hits = {}
     fpeer = FCLPeer(a.xy, b.xy, length)
-    peer_hits["fcl"] = fcl_loop(fpeer, items)
-    rows["sub_fcl"] = measure(lambda: fcl_loop(fpeer, items), args.peer_repeats, M,
+    peer_hits["fcl"] = fpeer.run(items)
+    rows["sub_fcl"] = measure(lambda: fpeer.run(items), args.peer_repeats, M,
                                 warmup=0)
     try:
-        cpeer = CoalStripPeer(a.xy, b.xy, length)
-        peer_hits["coal"] = coal_loop(cpeer, items)
-        rows["sub_coal"] = measure(lambda: coal_loop(cpeer, items), args.peer_repeats, M,
+        cpeer = CoalPeer(a.xy, b.xy, length)
+        peer_hits["coal"] = cpeer.run(items)
+        rows["sub_coal"] = measure(lambda: cpeer.run(items), args.peer_repeats, M,
                                    warmup=0)
     except ImportError:
         log("  (coal not installed: skipped)")
@@ -452,6 +324,8 @@ _FIRST_CALL_CODE = r"""
 import json, sys, time
 t0 = time.perf_counter()
 import numpy as np
+
+from prismbatch.sampling import facing_poses, free_poses
 import prismbatch as pb
 t_import = time.perf_counter() - t0
 parallel = sys.argv[1] == "parallel"

@@ -7,6 +7,7 @@ index, no copies) and writes only its own output slots.
 """
 
 import math
+import types
 
 import numpy as np
 from numba import njit, prange
@@ -85,8 +86,23 @@ def _collide_loop(avx, avy, aeang, aetab, avang, ainv, aoff, arad, acen,
                 contact_out[i, 2] = math.nan
 
 
-collide_serial = njit(cache=True, parallel=False)(_collide_loop)
-collide_parallel = njit(cache=True, parallel=True)(_collide_loop)
+def _variant(func, name):
+    """A copy of ``func`` under another name.
+
+    Numba's on-disk cache is keyed by the function's name and source line,
+    not by the ``parallel`` flag: compiled twice under one name, the serial
+    and parallel kernels would overwrite each other's cache entry and one
+    would silently run as the other.
+    """
+    code = func.__code__.replace(co_name=name, co_qualname=name)
+    g = types.FunctionType(code, func.__globals__, name, func.__defaults__, func.__closure__)
+    g.__qualname__ = name
+    g.__doc__ = func.__doc__
+    return g
+
+
+collide_serial = njit(cache=True, parallel=False)(_variant(_collide_loop, "collide_serial"))
+collide_parallel = njit(cache=True, parallel=True)(_variant(_collide_loop, "collide_parallel"))
 
 
 def run(a_arrays, b_arrays, pos_a, rot_a, pos_b, rot_b, n, rtol, atol,

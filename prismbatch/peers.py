@@ -118,17 +118,38 @@ def fcl_prism(xy, length):
     return fcl.Convex(verts, len(faces), np.asarray(flat, dtype=np.int64))
 
 
+def _cap_strip(n):
+    """Triangles (i, j, k) covering the CCW polygon 0..n-1 as a zig-zag strip.
+
+    Unlike a fan, no vertex gets more than a few neighbours: coal refuses
+    convex meshes whose vertices have too many (a 254-gon fan fails).
+    """
+    tris = []
+    i, j = 0, n - 1
+    while j - i >= 2:
+        tris.append((i, i + 1, j))
+        i += 1
+        if j - i >= 2:
+            tris.append((i, j - 1, j))
+            j -= 1
+    return tris
+
+
 def coal_prism(xy, length):
     """``coal.Convex`` of the extruded polygon (triangulated, outward facing)."""
     coal = _import_coal()
     verts, faces = _prism_mesh(xy, length)
+    n = len(verts) // 2
     pts = coal.StdVec_Vec3s()
     for v in verts:
         pts.append(np.asarray(v, dtype=float))
     tris = coal.StdVec_Triangle()
-    for f in faces:  # fan triangulation keeps the (outward) orientation
-        for k in range(1, len(f) - 1):
-            tris.append(coal.Triangle(int(f[0]), int(f[k]), int(f[k + 1])))
+    for a, b, c in _cap_strip(n):
+        tris.append(coal.Triangle(a, c, b))              # bottom cap, normal -z
+        tris.append(coal.Triangle(n + a, n + b, n + c))  # top cap, normal +z
+    for f in faces[2:]:                                  # side quads, outward
+        tris.append(coal.Triangle(int(f[0]), int(f[1]), int(f[2])))
+        tris.append(coal.Triangle(int(f[0]), int(f[2]), int(f[3])))
     return coal.Convex(pts, tris)
 
 
@@ -146,72 +167,77 @@ def _batch_poses(pos_a, rot_a, pos_b, rot_b):
     return N, pos_a, rot_a, pos_b, rot_b
 
 
-class FCLPeer:
-    """python-fcl boolean collision between two finite prism stand-ins.
+class _Peer:
+    """Boolean collision of two finite prism stand-ins in a library like FCL.
 
     Built once from the two polygons and the stand-in ``length`` (see
-    ``fcl_standin_length``); the ``fcl.CollisionObject``s are reused and
-    only their transforms change per query.  A fresh ``CollisionRequest`` /
-    ``CollisionResult`` is created per query (python-fcl accumulates
-    contacts into a reused result).
+    ``fcl_standin_length``); the collision objects are reused and only their
+    transforms change per query. A fresh request and result are created per
+    query (python-fcl accumulates contacts into a reused result).
+    Subclasses name the library's module, geometry builder and result test.
     """
 
     def __init__(self, xy_a, xy_b, length):
-        fcl = _import_fcl()
-        self._fcl = fcl
+        lib = self._import()
+        self._lib = lib
+        self._Transform = getattr(lib, self._transform_name)
         self.length = float(length)
-        self.geom_a = fcl_prism(xy_a, self.length)
-        self.geom_b = fcl_prism(xy_b, self.length)
-        self.obj_a = fcl.CollisionObject(self.geom_a, fcl.Transform())
-        self.obj_b = fcl.CollisionObject(self.geom_b, fcl.Transform())
+        self.geom_a = self._geometry(xy_a, self.length)
+        self.geom_b = self._geometry(xy_b, self.length)
+        self.obj_a = lib.CollisionObject(self.geom_a, self._Transform())
+        self.obj_b = lib.CollisionObject(self.geom_b, self._Transform())
+
+    @staticmethod
+    def prepare(pos_a, rot_a, pos_b, rot_b):
+        """Per-pair contiguous float64 (R_a, p_a, R_b, p_b) tuples (outside timed loops)."""
+        N, pos_a, rot_a, pos_b, rot_b = _batch_poses(pos_a, rot_a, pos_b, rot_b)
+        f = np.ascontiguousarray
+        return [(f(rot_a[k]), f(pos_a[k]), f(rot_b[k]), f(pos_b[k])) for k in range(N)]
+
+    def run(self, items) -> np.ndarray:
+        """Collide prepared pairs: per query two transforms, a fresh request/result."""
+        lib = self._lib
+        oa, ob = self.obj_a, self.obj_b
+        Transform, Request, Result, collide = (self._Transform, lib.CollisionRequest,
+                                               lib.CollisionResult, lib.collide)
+        hit = self._is_collision
+        out = np.empty(len(items), dtype=bool)
+        for k, (ra, pa, rb, pb) in enumerate(items):
+            oa.setTransform(Transform(ra, pa))
+            ob.setTransform(Transform(rb, pb))
+            res = Result()
+            collide(oa, ob, Request(), res)
+            out[k] = hit(res)
+        return out
 
     def collide(self, pos_a, rot_a, pos_b, rot_b) -> bool:
-        fcl = self._fcl
-        self.obj_a.setTransform(fcl.Transform(np.asarray(rot_a, dtype=float).reshape(3, 3),
-                                              np.asarray(pos_a, dtype=float).reshape(3)))
-        self.obj_b.setTransform(fcl.Transform(np.asarray(rot_b, dtype=float).reshape(3, 3),
-                                              np.asarray(pos_b, dtype=float).reshape(3)))
-        request = fcl.CollisionRequest()
-        result = fcl.CollisionResult()
-        fcl.collide(self.obj_a, self.obj_b, request, result)
-        return bool(result.is_collision)
+        """One pair: poses (3,) and (3, 3)."""
+        return bool(self.run(self.prepare(pos_a, rot_a, pos_b, rot_b))[0])
 
     def collide_batch(self, pos_a, rot_a, pos_b, rot_b) -> np.ndarray:
         """(N,) bool for per-pair poses pos (N, 3), rot (N, 3, 3) (broadcasts)."""
-        N, pos_a, rot_a, pos_b, rot_b = _batch_poses(pos_a, rot_a, pos_b, rot_b)
-        out = np.empty(N, dtype=bool)
-        for k in range(N):
-            out[k] = self.collide(pos_a[k], rot_a[k], pos_b[k], rot_b[k])
-        return out
+        return self.run(self.prepare(pos_a, rot_a, pos_b, rot_b))
 
 
-class CoalPeer:
-    """Same as ``FCLPeer`` but with coal (the maintained hpp-fcl fork)."""
+class FCLPeer(_Peer):
+    """python-fcl (GJK/MPR on ``fcl.Convex``) on finite stand-ins."""
 
-    def __init__(self, xy_a, xy_b, length):
-        coal = _import_coal()
-        self._coal = coal
-        self.length = float(length)
-        self.geom_a = coal_prism(xy_a, self.length)
-        self.geom_b = coal_prism(xy_b, self.length)
-        self.obj_a = coal.CollisionObject(self.geom_a, coal.Transform3s())
-        self.obj_b = coal.CollisionObject(self.geom_b, coal.Transform3s())
+    _import = staticmethod(_import_fcl)
+    _geometry = staticmethod(fcl_prism)
+    _transform_name = "Transform"
 
-    def collide(self, pos_a, rot_a, pos_b, rot_b) -> bool:
-        coal = self._coal
-        self.obj_a.setTransform(coal.Transform3s(np.asarray(rot_a, dtype=float).reshape(3, 3),
-                                                 np.asarray(pos_a, dtype=float).reshape(3)))
-        self.obj_b.setTransform(coal.Transform3s(np.asarray(rot_b, dtype=float).reshape(3, 3),
-                                                 np.asarray(pos_b, dtype=float).reshape(3)))
-        request = coal.CollisionRequest()
-        result = coal.CollisionResult()
-        coal.collide(self.obj_a, self.obj_b, request, result)
-        return bool(result.isCollision())
+    @staticmethod
+    def _is_collision(res):
+        return res.is_collision
 
-    def collide_batch(self, pos_a, rot_a, pos_b, rot_b) -> np.ndarray:
-        """(N,) bool for per-pair poses pos (N, 3), rot (N, 3, 3) (broadcasts)."""
-        N, pos_a, rot_a, pos_b, rot_b = _batch_poses(pos_a, rot_a, pos_b, rot_b)
-        out = np.empty(N, dtype=bool)
-        for k in range(N):
-            out[k] = self.collide(pos_a[k], rot_a[k], pos_b[k], rot_b[k])
-        return out
+
+class CoalPeer(_Peer):
+    """coal (the maintained hpp-fcl successor) on finite stand-ins."""
+
+    _import = staticmethod(_import_coal)
+    _geometry = staticmethod(coal_prism)
+    _transform_name = "Transform3s"
+
+    @staticmethod
+    def _is_collision(res):
+        return res.isCollision()

@@ -77,8 +77,8 @@ def facing_poses(n, rng, *, radius=2.5, max_tilt=np.radians(15.0)):
 
 def free_poses(n, rng, *, radius=2.5):
     """Uniform random rotations for both; centres uniform in a box of half-width 2 radius."""
-    pos_a = rng.uniform(-radius, radius, (n, 3))
-    pos_b = rng.uniform(-radius, radius, (n, 3))
+    pos_a = rng.uniform(-2 * radius, 2 * radius, (n, 3))
+    pos_b = rng.uniform(-2 * radius, 2 * radius, (n, 3))
     return pos_a, random_rotations(n, rng), pos_b, random_rotations(n, rng)
 
 

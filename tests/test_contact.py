@@ -163,3 +163,16 @@ def test_contacts_with_large_tolerance(random_pairs, rtol, atol):
     assert np.all(r.hit[base.hit]), "a larger tolerance cannot lose hits"
     n_hits, _ = check_contacts(d, r, f"rtol={rtol},atol={atol}", rtol=rtol, atol=atol)
     assert n_hits > base.hit.sum()  # the tolerance adds near misses
+
+
+def test_serial_and_parallel_kernels_have_separate_cache_entries():
+    # Numba keys its disk cache by function name and line, not by the
+    # parallel flag: one shared name made one kernel silently run as the other.
+    from prismbatch import _batch
+
+    assert _batch.collide_serial.targetoptions.get("parallel") is False
+    assert _batch.collide_parallel.targetoptions.get("parallel") is True
+    names = {_batch.collide_serial.py_func.__qualname__, _batch.collide_parallel.py_func.__qualname__}
+    assert len(names) == 2
+    idx = {d._cache._cache_file._index_name for d in (_batch.collide_serial, _batch.collide_parallel)}
+    assert len(idx) == 2
