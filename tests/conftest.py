@@ -326,6 +326,14 @@ class PairData:
         return self.pos_a, self.rot_a, self.pos_b, self.rot_b
 
 
+def pairs_from_rows(rows):
+    """PairData from rows (polygon_a, polygon_b, pos_a, rot_a, pos_b, rot_b)."""
+    A, B, pa, Ra, pb_, Rb = zip(*rows)
+    d = PairData(list(A), list(B), np.array(pa), np.array(Ra), np.array(pb_), np.array(Rb))
+    d.scale = pair_scale(d.polys_a, d.pos_a, d.rot_a, d.polys_b, d.pos_b, d.rot_b)
+    return d
+
+
 def make_pairs(rng, n_pairs, pose_set, family="mixed", *, regular=None, with_margin=False):
     """Random PairData for one pose set (``facing``/``free``) and family."""
     pa, pb = polygon_pairs(rng, n_pairs, family, regular=regular)
@@ -419,7 +427,7 @@ def perpendicular_pairs(rng, n, mode, depression=0.0):
     cd, sd = np.cos(depression), np.sin(depression)
     # rotation about world y taking +x to (cos, 0, -sin): b's axis points down
     pitch = np.array([[cd, 0.0, sd], [0.0, 1.0, 0.0], [-sd, 0.0, cd]])
-    polys_a, polys_b, pos_a, rot_a, pos_b, rot_b = [], [], [], [], [], []
+    rows = []
     for _ in range(n):
         A = random_polygon(rng, sample_vertex_count(rng, "smallmed"))
         B = random_polygon(rng, sample_vertex_count(rng, "smallmed"))
@@ -452,15 +460,8 @@ def perpendicular_pairs(rng, n, mode, depression=0.0):
                 rho = 1.3 * ra * np.sqrt(rng.uniform())
                 goal = ca[:2] + rho * np.array([np.cos(phi), np.sin(phi)])
                 pb_[:2] += goal - (pb_[:2] + Rb[:2, :2] @ B[top])
-        polys_a.append(A)
-        polys_b.append(B)
-        pos_a.append(pa)
-        rot_a.append(Ra)
-        pos_b.append(pb_)
-        rot_b.append(Rb)
-    d = PairData(polys_a, polys_b, np.array(pos_a), np.array(rot_a), np.array(pos_b), np.array(rot_b))
-    d.scale = pair_scale(d.polys_a, d.pos_a, d.rot_a, d.polys_b, d.pos_b, d.rot_b)
-    return d
+        rows.append((A, B, pa, Ra, pb_, Rb))
+    return pairs_from_rows(rows)
 
 
 def vertical_pairs(rng, n, relation, height, *, with_gap=True):
@@ -473,7 +474,7 @@ def vertical_pairs(rng, n, relation, height, *, with_gap=True):
     pushed 1e-3 R apart / together.
     Returns the pairs and the analytic Euclidean gap of the bodies.
     """
-    polys_a, polys_b, pos_a, rot_a, pos_b, rot_b, gaps = [], [], [], [], [], [], []
+    rows, gaps = [], []
     flip = np.diag([1.0, -1.0, -1.0])
     for k in range(n):
         A = random_polygon(rng, sample_vertex_count(rng, "small"), offset=0.0)
@@ -514,16 +515,9 @@ def vertical_pairs(rng, n, relation, height, *, with_gap=True):
             gap = dist2d
         else:  # antiparallel, b's end face below a's: separated vertically too
             gap = np.hypot(dist2d, pa[2] - zb)
-        polys_a.append(A)
-        polys_b.append(B)
-        pos_a.append(pa)
-        rot_a.append(Ra)
-        pos_b.append(pb_)
-        rot_b.append(Rb)
+        rows.append((A, B, pa, Ra, pb_, Rb))
         gaps.append(gap)
-    d = PairData(polys_a, polys_b, np.array(pos_a), np.array(rot_a), np.array(pos_b), np.array(rot_b))
-    d.scale = pair_scale(d.polys_a, d.pos_a, d.rot_a, d.polys_b, d.pos_b, d.rot_b)
-    return d, np.array(gaps)
+    return pairs_from_rows(rows), np.array(gaps)
 
 
 # ---------------------------------------------------------------------------

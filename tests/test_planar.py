@@ -179,12 +179,17 @@ def gen_segment(rng, g, big_tol=None):
     return g.c + rng.uniform(-0.2, 0.2, 2) * g.r, g.c + rng.uniform(-0.2, 0.2, 2) * g.r
 
 
-def gen_halfline(rng, g, big_tol=None):
+def _draw(rng, g, big_tol):
+    """Shared draws of the ray generators: variant k, vertex i, shift s, a random direction."""
     k = rng.integers(7)
     i = int(rng.integers(g.n))
     s = pick_shift(rng, big_tol)
     ang = rng.uniform(0, 2 * np.pi)
-    rnd_dir = np.array([np.cos(ang), np.sin(ang)]) * rng.uniform(0.1, 3.0)
+    return k, i, s, np.array([np.cos(ang), np.sin(ang)]) * rng.uniform(0.1, 3.0)
+
+
+def gen_halfline(rng, g, big_tol=None):
+    k, i, s, rnd_dir = _draw(rng, g, big_tol)
     if k == 0:
         return g.box_point(rng, grow=2.0), rnd_dir
     if k == 1:  # pointing at the polygon
@@ -207,11 +212,7 @@ def gen_halfline(rng, g, big_tol=None):
 
 
 def gen_strip(rng, g, big_tol=None):
-    k = rng.integers(7)
-    i = int(rng.integers(g.n))
-    s = pick_shift(rng, big_tol)
-    ang = rng.uniform(0, 2 * np.pi)
-    rnd_dir = np.array([np.cos(ang), np.sin(ang)]) * rng.uniform(0.1, 3.0)
+    k, i, s, rnd_dir = _draw(rng, g, big_tol)
     if k == 0:
         return g.box_point(rng, grow=2.0), g.box_point(rng, grow=2.0), rnd_dir
     if k == 1:  # base segment on the supporting line at vertex i, strip outward
@@ -228,7 +229,7 @@ def gen_strip(rng, g, big_tol=None):
         p1 = g.box_point(rng, grow=2.0)
         return p1, p1 + rnd_dir * rng.uniform(0.1, 1.0), rnd_dir * rng.choice([-1.0, 1.0])
     if k == 4:  # base segment crosses the polygon's whole width
-        t = rot2(np.array([1.0, 0.0]), ang)
+        t = rnd_dir / np.linalg.norm(rnd_dir)  # (cos ang, sin ang) of the draw
         q = g.c - 0.5 * g.r * rot2(t, np.pi / 2) * rng.uniform(-3, 3)
         return q - 3 * g.r * t, q + 3 * g.r * t, rot2(t, rng.uniform(0.2, 2.9))
     if k == 5:  # boundary ray along edge i's line, strip outside
