@@ -17,7 +17,7 @@ from ._projection import pair_test
 
 def _collide_loop(avx, avy, aeang, aetab, avang, ainv, aoff, arad, acen,
                   bvx, bvy, beang, betab, bvang, binv, boff, brad, bcen,
-                  pos_a, rot_a, pos_b, rot_b, rtol, atol, want_contact,
+                  pos_a, rot_a, pos_b, rot_b, rtol, atol, eps, want_contact,
                   hit_out, case_out, contact_out):
     n = hit_out.shape[0]
     npa = pos_a.shape[0]
@@ -63,8 +63,11 @@ def _collide_loop(avx, avy, aeang, aetab, avang, ainv, aoff, arad, acen,
         r22 = Ra[0, 2] * Rb[0, 2] + Ra[1, 2] * Rb[1, 2] + Ra[2, 2] * Rb[2, 2]
         ra = arad[ka]
         rb = brad[kb]
-        # Scale-aware tolerance: rounding grows with the coordinates involved.
-        tol = atol + rtol * (ra + rb + math.sqrt(px * px + py * py + pz * pz))
+        # Scale-aware tolerance: rounding grows with the sizes involved, and
+        # the world positions themselves are only known to eps |c|.
+        tol = (atol + rtol * (ra + rb + math.sqrt(px * px + py * py + pz * pz))
+               + 4.0 * eps * (math.sqrt(ox * ox + oy * oy + oz * oz)
+                              + math.sqrt((dx + ox) ** 2 + (dy + oy) ** 2 + (dz + oz) ** 2)))
         sa = aoff[ka]
         na = aoff[ka + 1] - sa
         sb = boff[kb]
@@ -114,5 +117,5 @@ def run(a_arrays, b_arrays, pos_a, rot_a, pos_b, rot_b, n, rtol, atol,
     contact = np.empty((n if want_contact else 0, 3), dtype=pos_a.dtype)
     kern = collide_parallel if parallel else collide_serial
     kern(*a_arrays, *b_arrays, pos_a, rot_a, pos_b, rot_b,
-         rtol, atol, want_contact, hit, case, contact)
+         rtol, atol, float(np.finfo(pos_a.dtype).eps), want_contact, hit, case, contact)
     return hit, case, contact

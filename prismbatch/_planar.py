@@ -63,17 +63,19 @@ def edge_search_tables(vx, vy, out_ang, out_tab):
         out_ang[0] = 0.0
         out_tab[0] = 0
         return
-    wrap = 0.0
-    prev = 0.0
-    for k in range(n):
+    # Unwrap by increments: a convex turn is below a half turn (2 in
+    # pseudo-angle); an increment above 2 is a rounding-level backward turn
+    # of nearly collinear edges, and counts as no turn.
+    prev_raw = pseudo_angle(vx[1] - vx[0], vy[1] - vy[0])
+    out_ang[0] = prev_raw
+    for k in range(1, n):
         k1 = k + 1 if k + 1 < n else 0
         a = pseudo_angle(vx[k1] - vx[k], vy[k1] - vy[k])
-        if k > 0 and a + wrap < prev - 1.0:
-            wrap += 4.0  # passed the +x direction: one full turn of pseudo-angle
-        # Nearly collinear edges may turn back by a rounding error: keep the
-        # sequence non-decreasing so the binary search stays valid.
-        prev = max(prev, a + wrap) if k > 0 else a
-        out_ang[k] = prev
+        inc = (a - prev_raw) % 4.0
+        if inc > 2.0:
+            inc = 0.0
+        out_ang[k] = out_ang[k - 1] + inc
+        prev_raw = a
     j = 0
     for b in range(n):
         edge = 4.0 * b / n
@@ -192,12 +194,15 @@ SLAB_INSIDE, SLAB_LO, SLAB_HI = 0, 1, 2
 
 
 @njit(cache=True)
-def slab_support(vx, vy, eang, etab, s, n, dx, dy, hx, hy, imin, imax, lo, hi):
+def slab_support(vx, vy, eang, etab, s, n, dx, dy, hx, hy, imin, imax, lo, hi, ex, ey):
     """Maximise d.q over {q in polygon : lo <= h.q <= hi} (assumed non-empty).
 
     If the unconstrained maximiser violates one side of the slab, the
     constrained maximum lies on that side's chord (an LP fact), found by
-    binary search. Returns (u, v, flag) with flag SLAB_INSIDE/LO/HI.
+    binary search. The chord's two ends are told apart by ``e``: any
+    direction that orders points on the chord like ``d`` does (d differs from
+    e by a multiple of h, constant on the chord), chosen well conditioned.
+    Returns (u, v, flag) with flag SLAB_INSIDE/LO/HI.
     """
     k = extreme_vertex(vx, vy, eang, etab, s, n, dx, dy)
     u = vx[s + k]
@@ -212,7 +217,7 @@ def slab_support(vx, vy, eang, etab, s, n, dx, dy, hx, hy, imin, imax, lo, hi):
     else:
         return u, v, SLAB_INSIDE
     u1, v1, u2, v2 = chord(vx, vy, s, n, hx, hy, imin, imax, level)
-    if dx * u1 + dy * v1 >= dx * u2 + dy * v2:
+    if ex * u1 + ey * v1 >= ex * u2 + ey * v2:
         return u1, v1, flag
     return u2, v2, flag
 
@@ -239,7 +244,7 @@ def support_spec(vx, vy, eang, etab, s, n, sp, dx, dy):
     imax = int(sp[SP_IMAX])
     tf = T if g > 0.0 else 0.0
     if c == 0.0:
-        u, v, _ = slab_support(vx, vy, eang, etab, s, n, au, av, hx, hy, imin, imax, -tz - pz, math.inf)
+        u, v, _ = slab_support(vx, vy, eang, etab, s, n, au, av, hx, hy, imin, imax, -tz - pz, math.inf, au, av)
         t = tf
     else:
         k = extreme_vertex(vx, vy, eang, etab, s, n, au, av)
@@ -260,7 +265,8 @@ def support_spec(vx, vy, eang, etab, s, n, sp, dx, dy):
                 lo, hi, t_lo, t_hi = h0, ht, 0.0, T
             else:
                 lo, hi, t_lo, t_hi = ht, h0, T, 0.0
-            u, v, flag = slab_support(vx, vy, eang, etab, s, n, du, dv, hx, hy, imin, imax, lo, hi)
+            # On a chord (t fixed) the objective is a.q + const: compare ends by a.
+            u, v, flag = slab_support(vx, vy, eang, etab, s, n, du, dv, hx, hy, imin, imax, lo, hi, au, av)
             if flag == SLAB_LO:
                 t = t_lo
             elif flag == SLAB_HI:
@@ -293,7 +299,14 @@ def _seg_closest(p, q):
         return p[0], p[1], 0.0
     if lam >= 1.0:
         return q[0], q[1], 1.0
-    return p[0] + lam * ex, p[1] + lam * ey, lam
+    # Interior: take v along the edge normal. p + lam e loses the direction
+    # when |v| is tiny against |p| (relative error eps |p| / |v|), and GJK
+    # then stalls on long edges; the normal is exact to eps whatever |v|.
+    inv = 1.0 / math.sqrt(ee)
+    nx = -ey * inv
+    ny = ex * inv
+    d = p[0] * nx + p[1] * ny
+    return d * nx, d * ny, lam
 
 
 @njit(cache=True, inline="always")
@@ -329,12 +342,17 @@ def gjk(avx, avy, aeang, aetab, sa, na, bvx, bvy, beang, betab, sb, nb, sp, tol)
     vy_ = p0[1]
     wit = p0
     last_vv = math.inf
+    lower = -math.inf  # best lower bound of the distance so far
     for it in range(GJK_MAX_ITER):
         vv = vx_ * vx_ + vy_ * vy_
         if vv <= tol2:
             return True, it, wit[2], wit[3], wit[4], wit[5], wit[6]
         if vv >= last_vv:
-            return False, it, 0.0, 0.0, 0.0, 0.0, 0.0  # no progress: at rounding level, |v| > tol
+            # No progress at rounding level: the distance lies in [lower, |v|]
+            # with |v| > tol. Touching counts, so undecided means hit.
+            if lower <= tol:
+                return True, it, wit[2], wit[3], wit[4], wit[5], wit[6]
+            return False, it, 0.0, 0.0, 0.0, 0.0, 0.0
         last_vv = vv
         ka = extreme_vertex(avx, avy, aeang, aetab, sa, na, -vx_, -vy_)
         bx, by, bu, bv, bt = support_spec(bvx, bvy, beang, betab, sb, nb, sp, vx_, vy_)
@@ -342,7 +360,8 @@ def gjk(avx, avy, aeang, aetab, sa, na, bvx, bvy, beang, betab, sb, nb, sp, tol)
         ay = avy[sa + ka]
         pn = (ax - bx, ay - by, ax, ay, bu, bv, bt)
         vw = vx_ * pn[0] + vy_ * pn[1]
-        if vw > 0.0 and vw * vw > tol2 * vv:
+        lower = max(lower, vw / math.sqrt(vv))
+        if lower > tol:
             return False, it, 0.0, 0.0, 0.0, 0.0, 0.0  # separating line with gap > tol
         if vv - vw <= 1e-13 * vv:
             return False, it, 0.0, 0.0, 0.0, 0.0, 0.0  # converged at distance ~|v| > tol

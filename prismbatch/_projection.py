@@ -15,11 +15,11 @@ T = (|p_xy| + R_a + R_b + 2 tol) / |w|, which keeps every coordinate bounded
 whatever the angle between the axes (no tan α or sec²α anywhere).
 
 Tolerance: b's half-space test is relaxed to z >= -tol and GJK accepts a 2-D
-gap <= tol. Hence a reported hit means the Euclidean distance between the
-bodies is <= sqrt(2) tol, and bodies within tol (touching) always report a hit.
-When the axes are perpendicular to within the reach (|c| T <= tol / 2), c is
-set to 0 and the relaxation halved: the result is sandwiched between the exact
-and the tol-relaxed geometry (cases 7-9).
+gap <= tol. Hence bodies within tol (touching) always report a hit, and a
+reported hit means the Euclidean distance between the bodies is <= sqrt(2) tol.
+When the axes are perpendicular to within the reach (|c| T <= tol / 4), c is
+set to 0 and the relaxation widened by |c| T: still every pair within tol
+hits, and a hit is within sqrt(1 + 1.5^2) tol < 2 tol (cases 7-9).
 """
 
 import math
@@ -95,9 +95,13 @@ def pair_test(avx, avy, aeang, aetab, avang, ainv, sa, na, ra,
     pr = math.hypot(px, py)
     wn = math.hypot(r02, r12)
     T = (pr + ra + rb + 2.0 * tol) / max(wn, 1e-150)
-    perp = abs(c) * T <= 0.5 * tol
+    # Perpendicular within reach: b's axis changes height by at most tol/4
+    # over T. Then c is taken as 0 and the height relaxation widened by
+    # that change, so bodies within tol still hit (and a hit is within 2 tol).
+    drift = abs(c) * T
+    perp = drift <= 0.25 * tol
     ceff = 0.0 if perp else c
-    tz = 0.5 * tol if perp else tol
+    tz = tol + drift if perp else tol
 
     # --- classification (labels; the decision below is one exact path) ---
     if d3 < -tol:

@@ -14,8 +14,9 @@ from .shapes import as_prism_set
 __all__ = ["collide", "Collider", "CollisionResult", "CASES", "DEFAULT_RTOL"]
 
 #: Default relative tolerance per dtype. The absolute tolerance of a pair is
-#: ``atol + rtol * (R_a + R_b + |c_b - c_a|)`` (bounding radii of the end faces
-#: about their centres and the distance between the centres).
+#: ``atol + rtol * (R_a + R_b + |c_b - c_a|) + 4 eps (|c_a| + |c_b|)`` (bounding
+#: radii of the end faces about their centres, the distance between the
+#: centres, and a rounding floor for positions far from the world origin).
 DEFAULT_RTOL = {np.dtype(np.float64): 1e-9, np.dtype(np.float32): 1e-5}
 
 
@@ -133,8 +134,11 @@ def collide(shape_a, shape_b, pos_a, rot_a=None, pos_b=None, rot_b=None, *, cont
         Component order of quaternion rotations (required for quaternions).
     rtol, atol : float, optional
         Tolerance of touching: a pair's tolerance is
-        ``atol + rtol * (R_a + R_b + |c_b - c_a|)``. Bodies within it count as
-        colliding; a reported hit means the bodies are within sqrt(2) times it.
+        ``atol + rtol * (R_a + R_b + |c_b - c_a|) + 4 eps (|c_a| + |c_b|)``
+        (R: end-face radii, c: end-face centres in world coordinates, eps:
+        machine epsilon of ``dtype``). Bodies within it count as
+        colliding; a reported hit means the bodies are within sqrt(2) times it
+        (2 times it for axes perpendicular within tol/4 over a's reach).
     dtype : {numpy.float64, numpy.float32}, optional
         Precision of the stored shapes and poses (float32 halves memory
         traffic; its default rtol is 1e-5).

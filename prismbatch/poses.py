@@ -93,7 +93,7 @@ def _ortho_tol(input_dtype: np.dtype) -> float:
 def _check_finite(a64: np.ndarray, name: str, batched: bool, what: str = "") -> None:
     """Raise naming the first pose whose entries are not all finite."""
     if batched:
-        bad = ~np.isfinite(a64.reshape(a64.shape[0], -1)).all(axis=1)
+        bad = ~np.isfinite(a64.reshape(a64.shape[0], -1) if a64.size else a64.reshape(0, 1)).all(axis=1)
         if bad.any():
             i = int(np.flatnonzero(bad)[0])
             raise ValueError(

@@ -19,8 +19,28 @@ time or inside fixtures.
 
 from __future__ import annotations
 
+import hashlib
 import os
 import sys
+import tempfile
+from pathlib import Path
+
+
+def _kernel_cache_dir():
+    """A Numba cache folder keyed by the package's sources.
+
+    Numba invalidates a cached kernel only when the file that defines it
+    changes, not when a kernel it calls (in another module) does; a stale
+    cache would test old code. Set before prismbatch (and numba) is imported.
+    """
+    src = Path(__file__).resolve().parent.parent / "prismbatch"
+    h = hashlib.sha256()
+    for f in sorted(src.glob("*.py")):
+        h.update(f.read_bytes())
+    return os.path.join(tempfile.gettempdir(), f"prismbatch-numba-{h.hexdigest()[:16]}")
+
+
+os.environ.setdefault("NUMBA_CACHE_DIR", _kernel_cache_dir())
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -286,7 +306,11 @@ def pair_scale(polys_a, pos_a, rot_a, polys_b, pos_b, rot_b):
 
 
 def pair_tolerance(polys_a, pos_a, rot_a, polys_b, pos_b, rot_b, *, rtol=1e-9, atol=0.0):
-    """The binding pair tolerance ``atol + rtol * S``."""
+    """The binding pair tolerance ``atol + rtol * S``.
+
+    The package adds a rounding floor ``4 eps (|c_a| + |c_b|)`` for the world
+    positions; with the unit-size positions used here it is below 1e-14.
+    """
     return atol + rtol * pair_scale(polys_a, pos_a, rot_a, polys_b, pos_b, rot_b)
 
 
