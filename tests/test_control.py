@@ -1,0 +1,134 @@
+"""Detach controller: each row of eq. (42) on a constructed contact, and the
+check that a small step of b along the detach direction reduces the
+penetration, measured with the exact LP margin (tests/reference.py)."""
+
+import numpy as np
+import pytest
+
+import prismbatch as pb
+from prismbatch.control import CONTACT_CLASSES, detach
+from prismbatch.sampling import random_rotations
+from reference import margin_lp
+
+A = pb.Prism([[-1, -1], [1, -1], [1, 1], [-1, 1]])  # square, side 2
+B = pb.Prism([[-0.4, -0.4], [0.4, -0.4], [0.4, 0.4], [-0.4, 0.4]])
+DOWN = np.diag([1.0, -1.0, -1.0])  # a's axis points down: a's body is z <= 0, its end face z = 0
+S2 = np.sqrt(0.5)
+
+
+def rot_from_axis(d, spin=0.0):
+    """A rotation whose third column is d (unit), spun about d."""
+    d = np.asarray(d, float) / np.linalg.norm(d)
+    helper = np.array([1.0, 0, 0]) if abs(d[0]) < 0.9 else np.array([0, 1.0, 0])
+    x = np.cross(helper, d)
+    x /= np.linalg.norm(x)
+    y = np.cross(d, x)
+    c, s = np.cos(spin), np.sin(spin)
+    return np.column_stack([c * x + s * y, -s * x + c * y, d])
+
+
+def test_every_class_is_described():
+    assert set(CONTACT_CLASSES) == set(range(7))
+
+
+@pytest.mark.parametrize(
+    "point, cls, direction",
+    [
+        ([1, 1, 0], 1, [0, 0, 1]),  # vertex of the end face, d_b = +z: leave along b's axis
+        ([0, 1, 0], 2, [0, 0, 1]),  # end-face edge
+        ([1, 1, -0.5], 3, [S2, S2, 0]),  # lateral edge: outward bisector
+        ([1, 0.2, -0.5], 4, [1, 0, 0]),  # side face: outward normal
+        ([-0.3, 0.1, 0], 5, [0, 0, 1]),  # end face: -d_a
+        ([0.2, 0.1, -0.3], 6, [0, 0, 1]),  # inside, end face nearest
+        ([0.95, 0.1, -0.7], 6, [1, 0, 0]),  # inside, side face nearest
+    ],
+)
+def test_rows_of_eq42_on_given_points(point, cls, direction):
+    r = detach(A, np.array([point], float), np.zeros(3), DOWN, np.eye(3), [[3.0, 4.0, 0.0]], eps=10.0)
+    assert r.contact_class[0] == cls
+    np.testing.assert_allclose(r.direction[0], direction, atol=1e-12)
+    np.testing.assert_allclose(r.force[0], 10.0 * 5.0 * np.asarray(direction), atol=1e-9)
+
+
+def test_vertex_and_edge_rows_follow_b_axis_unless_it_points_into_a():
+    # eqs. (43)-(46): d_b projected normal to the edge; if that points into a
+    # the direction turns to the normal of the edge and d_v, out of a.
+    tilted_out = rot_from_axis([0.3, 0.0, 1.0])
+    r = detach(A, [[1, 0, 0]], np.zeros(3), DOWN, tilted_out, [1.0])
+    assert r.contact_class[0] == 2
+    d = r.direction[0]
+    np.testing.assert_allclose(d, np.array([0.3, 0, 1]) / np.hypot(0.3, 1), atol=1e-12)
+    tilted_in = rot_from_axis([-0.3, 0.0, 1.0])  # projected axis points over a's end face
+    r = detach(A, [[1, 0, 0]], np.zeros(3), DOWN, tilted_in, [1.0])
+    d = r.direction[0]
+    assert abs(d @ [0, 1, 0]) < 1e-12  # normal to the edge (along y)
+    assert d @ np.array([1.0, 0, 1.0]) > 0  # out of a: between its side normal and -d_a
+    assert abs(d @ (np.array([-0.3, 0, 1]) / np.hypot(0.3, 1))) < 1e-12
+
+
+def test_no_contact_rows_are_nan():
+    r = detach(A, [[np.nan] * 3, [0, 0, 0]], np.zeros(3), DOWN, np.eye(3), [1.0, 1.0])
+    assert r.contact_class.tolist() == [0, 5]
+    assert np.isnan(r.direction[0]).all() and np.isnan(r.force[0]).all()
+
+
+def _touching_scenes():
+    """b poses whose collide contact lies on each feature class of a."""
+    return {
+        # b facing a, end faces coplanar, b's face inside a's: contact on a's end face
+        5: (np.array([0.2, -0.1, 0.0]), np.eye(3)),
+        # b's end face against a's side face x = 1 (b's axis along +x), below a's top
+        4: (np.array([1.0, 0.1, -1.0]), rot_from_axis([1, 0, 0])),
+        # b's end face against a's lateral edge at (1, 1): the plane x + y = 2 touches only the edge
+        3: (np.array([1.0, 1.0, -1.0]), rot_from_axis([S2, S2, 0])),
+        # b tilted so its lowest vertex sits on a's vertex (1, 1, 0)
+        1: None,
+        # b tilted about y: its lowest edge (along y) lies on a's end-face edge x = 1
+        2: (np.array([1.0 - 0.4 * np.cos(0.3), 0.2, 0.4 * np.sin(0.3)]), rot_from_axis([np.sin(0.3), 0, np.cos(0.3)])),
+        # b deep inside a
+        6: (np.array([0.0, 0.0, -0.5]), np.eye(3)),
+    }
+
+
+def _vertex_scene():
+    Rb = rot_from_axis([0.3, 0.2, 1.0], spin=0.4)
+    lowest = B.xy[np.argmin((Rb[:, :2] @ B.xy.T)[2])]
+    pos_b = np.array([1.0, 1.0, 0.0]) - Rb[:, :2] @ lowest
+    return pos_b, Rb
+
+
+@pytest.mark.parametrize("cls", [1, 2, 3, 4, 5, 6])
+def test_small_step_along_detach_direction_reduces_penetration(cls):
+    scene = _touching_scenes()[cls] or _vertex_scene()
+    pos_b, Rb = scene
+    r = pb.collide(A, B, np.zeros(3), DOWN, pos_b, Rb, contact=True)
+    assert r.hit[0]
+    d = detach(A, r.contact, np.zeros(3), DOWN, Rb, [1.0], tol=1e-7)
+    assert d.contact_class[0] == cls, CONTACT_CLASSES[int(d.contact_class[0])]
+    h = 1e-3
+    before = margin_lp(A.xy, np.zeros(3), DOWN, B.xy, pos_b, Rb)
+    after = margin_lp(A.xy, np.zeros(3), DOWN, B.xy, pos_b + h * d.direction[0], Rb)
+    assert after < before - 0.1 * h
+
+
+def test_fraction_of_random_colliding_pairs_where_a_step_reduces_penetration():
+    rng = np.random.default_rng(2)
+    n = 400
+    a = pb.Prism.regular(6, 1.0)
+    b = pb.Prism.regular(5, 0.6)
+    pos_b = rng.uniform(-1.2, 1.2, (n, 3))
+    Rb = random_rotations(n, rng)
+    r = pb.collide(a, b, np.zeros(3), DOWN, pos_b, Rb, contact=True)
+    idx = np.flatnonzero(r.hit)
+    d = detach(a, r.contact[idx], np.zeros(3), DOWN, Rb[idx], np.ones(len(idx)))
+    h = 1e-3
+    ok = 0
+    for j, i in enumerate(idx):
+        before = margin_lp(a.xy, np.zeros(3), DOWN, b.xy, pos_b[i], Rb[i])
+        after = margin_lp(a.xy, np.zeros(3), DOWN, b.xy, pos_b[i] + h * d.direction[j], Rb[i])
+        ok += after < before - 1e-9
+    frac = ok / len(idx)
+    print(f"\nstep of 1e-3 along the detach direction reduced the LP margin in {ok}/{len(idx)} "
+          f"random colliding pairs ({100 * frac:.1f} %); classes {np.bincount(d.contact_class, minlength=7)}")
+    assert len(idx) > 100
+    assert frac > 0.5
