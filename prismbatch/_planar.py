@@ -347,13 +347,6 @@ def gjk(avx, avy, aeang, aetab, sa, na, bvx, bvy, beang, betab, sb, nb, sp, tol)
         vv = vx_ * vx_ + vy_ * vy_
         if vv <= tol2:
             return True, it, wit[2], wit[3], wit[4], wit[5], wit[6]
-        if vv >= last_vv:
-            # No progress at rounding level: the distance lies in [lower, |v|]
-            # with |v| > tol. Touching counts, so undecided means hit.
-            if lower <= tol:
-                return True, it, wit[2], wit[3], wit[4], wit[5], wit[6]
-            return False, it, 0.0, 0.0, 0.0, 0.0, 0.0
-        last_vv = vv
         ka = extreme_vertex(avx, avy, aeang, aetab, sa, na, -vx_, -vy_)
         bx, by, bu, bv, bt = support_spec(bvx, bvy, beang, betab, sb, nb, sp, vx_, vy_)
         ax = avx[sa + ka]
@@ -365,6 +358,12 @@ def gjk(avx, avy, aeang, aetab, sa, na, bvx, bvy, beang, betab, sb, nb, sp, tol)
             return False, it, 0.0, 0.0, 0.0, 0.0, 0.0  # separating line with gap > tol
         if vv - vw <= 1e-13 * vv:
             return False, it, 0.0, 0.0, 0.0, 0.0, 0.0  # converged at distance ~|v| > tol
+        if vv >= last_vv:
+            # |v| stopped shrinking at rounding level: |v| (> tol) is the
+            # distance to within rounding. (Calling this "touching" because the
+            # lower bound lags gave hits several tol apart.)
+            return False, it, 0.0, 0.0, 0.0, 0.0, 0.0
+        last_vv = vv
         if k == 1:
             vx_, vy_, lam = _seg_closest(p0, pn)
             if lam >= 1.0:
@@ -407,6 +406,8 @@ def gjk(avx, avy, aeang, aetab, sa, na, bvx, bvy, beang, betab, sb, nb, sp, tol)
                 p0 = q
                 p1 = pn
                 wit = _mix(q, pn, lam)
-    # Undecided after the iteration cap: the distance is within rounding of
-    # tol; count it as touching (safety first).
-    return True, GJK_MAX_ITER, wit[2], wit[3], wit[4], wit[5], wit[6]
+    # Iteration cap (cycling at rounding level): touching counts, so a
+    # distance not shown to exceed tol is a hit.
+    if lower <= tol:
+        return True, GJK_MAX_ITER, wit[2], wit[3], wit[4], wit[5], wit[6]
+    return False, GJK_MAX_ITER, 0.0, 0.0, 0.0, 0.0, 0.0
