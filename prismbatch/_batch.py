@@ -13,6 +13,63 @@ import numpy as np
 from numba import njit, prange
 
 from ._projection import pair_test
+from .poses import first_bad_rotation
+
+
+@njit(cache=True)
+def pair_world(avx, avy, aeang, aetab, avang, ainv, aoff, arad, acen, ka,
+               bvx, bvy, beang, betab, boff, brad, bcen, kb,
+               Pa, Ra, Pb, Rb, rtol, atol, eps):
+    """One pair from world poses: (hit, case, contact x, y, z in world).
+
+    Shapes ka of set a and kb of set b; Pa (3,), Ra (3, 3) etc.
+    """
+    # End-face centres in world coordinates (the user's origin need not
+    # lie inside the polygon).
+    cax = acen[ka, 0]
+    cay = acen[ka, 1]
+    cbx = bcen[kb, 0]
+    cby = bcen[kb, 1]
+    ox = Pa[0] + Ra[0, 0] * cax + Ra[0, 1] * cay
+    oy = Pa[1] + Ra[1, 0] * cax + Ra[1, 1] * cay
+    oz = Pa[2] + Ra[2, 0] * cax + Ra[2, 1] * cay
+    dx = Pb[0] + Rb[0, 0] * cbx + Rb[0, 1] * cby - ox
+    dy = Pb[1] + Rb[1, 0] * cbx + Rb[1, 1] * cby - oy
+    dz = Pb[2] + Rb[2, 0] * cbx + Rb[2, 1] * cby - oz
+    # b's pose in a's centred frame: p = Ra^T d, R = Ra^T Rb.
+    px = Ra[0, 0] * dx + Ra[1, 0] * dy + Ra[2, 0] * dz
+    py = Ra[0, 1] * dx + Ra[1, 1] * dy + Ra[2, 1] * dz
+    pz = Ra[0, 2] * dx + Ra[1, 2] * dy + Ra[2, 2] * dz
+    r00 = Ra[0, 0] * Rb[0, 0] + Ra[1, 0] * Rb[1, 0] + Ra[2, 0] * Rb[2, 0]
+    r01 = Ra[0, 0] * Rb[0, 1] + Ra[1, 0] * Rb[1, 1] + Ra[2, 0] * Rb[2, 1]
+    r02 = Ra[0, 0] * Rb[0, 2] + Ra[1, 0] * Rb[1, 2] + Ra[2, 0] * Rb[2, 2]
+    r10 = Ra[0, 1] * Rb[0, 0] + Ra[1, 1] * Rb[1, 0] + Ra[2, 1] * Rb[2, 0]
+    r11 = Ra[0, 1] * Rb[0, 1] + Ra[1, 1] * Rb[1, 1] + Ra[2, 1] * Rb[2, 1]
+    r12 = Ra[0, 1] * Rb[0, 2] + Ra[1, 1] * Rb[1, 2] + Ra[2, 1] * Rb[2, 2]
+    r20 = Ra[0, 2] * Rb[0, 0] + Ra[1, 2] * Rb[1, 0] + Ra[2, 2] * Rb[2, 0]
+    r21 = Ra[0, 2] * Rb[0, 1] + Ra[1, 2] * Rb[1, 1] + Ra[2, 2] * Rb[2, 1]
+    r22 = Ra[0, 2] * Rb[0, 2] + Ra[1, 2] * Rb[1, 2] + Ra[2, 2] * Rb[2, 2]
+    ra = arad[ka]
+    rb = brad[kb]
+    # Scale-aware tolerance: rounding grows with the sizes involved, and
+    # the world positions themselves are only known to eps |c|.
+    tol = (atol + rtol * (ra + rb + math.sqrt(px * px + py * py + pz * pz))
+           + 4.0 * eps * (math.sqrt(ox * ox + oy * oy + oz * oz)
+                          + math.sqrt((dx + ox) ** 2 + (dy + oy) ** 2 + (dz + oz) ** 2)))
+    sa = aoff[ka]
+    na = aoff[ka + 1] - sa
+    sb = boff[kb]
+    nb = boff[kb + 1] - sb
+    hit, case, cx, cy, cz = pair_test(
+        avx, avy, aeang, aetab, avang, ainv, sa, na, ra,
+        bvx, bvy, beang, betab, sb, nb, rb,
+        px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22, tol)
+    if not hit:
+        return False, case, math.nan, math.nan, math.nan
+    return (True, case,
+            ox + Ra[0, 0] * cx + Ra[0, 1] * cy + Ra[0, 2] * cz,
+            oy + Ra[1, 0] * cx + Ra[1, 1] * cy + Ra[1, 2] * cz,
+            oz + Ra[2, 0] * cx + Ra[2, 1] * cy + Ra[2, 2] * cz)
 
 
 def _collide_loop(avx, avy, aeang, aetab, avang, ainv, aoff, arad, acen,
@@ -30,63 +87,17 @@ def _collide_loop(avx, avy, aeang, aetab, avang, ainv, aoff, arad, acen,
         # prange's index is unsigned; mixing it with int64 would give floats.
         i = np.int64(ip)
         # A batch of one broadcasts: min() picks row 0 (sizes are 1 or n).
-        ka = min(i, nsa - 1)
-        kb = min(i, nsb - 1)
-        Ra = rot_a[min(i, nra - 1)]
-        Rb = rot_b[min(i, nrb - 1)]
-        Pa = pos_a[min(i, npa - 1)]
-        Pb = pos_b[min(i, npb - 1)]
-        # End-face centres in world coordinates (the user's origin need not
-        # lie inside the polygon).
-        cax = acen[ka, 0]
-        cay = acen[ka, 1]
-        cbx = bcen[kb, 0]
-        cby = bcen[kb, 1]
-        ox = Pa[0] + Ra[0, 0] * cax + Ra[0, 1] * cay
-        oy = Pa[1] + Ra[1, 0] * cax + Ra[1, 1] * cay
-        oz = Pa[2] + Ra[2, 0] * cax + Ra[2, 1] * cay
-        dx = Pb[0] + Rb[0, 0] * cbx + Rb[0, 1] * cby - ox
-        dy = Pb[1] + Rb[1, 0] * cbx + Rb[1, 1] * cby - oy
-        dz = Pb[2] + Rb[2, 0] * cbx + Rb[2, 1] * cby - oz
-        # b's pose in a's centred frame: p = Ra^T d, R = Ra^T Rb.
-        px = Ra[0, 0] * dx + Ra[1, 0] * dy + Ra[2, 0] * dz
-        py = Ra[0, 1] * dx + Ra[1, 1] * dy + Ra[2, 1] * dz
-        pz = Ra[0, 2] * dx + Ra[1, 2] * dy + Ra[2, 2] * dz
-        r00 = Ra[0, 0] * Rb[0, 0] + Ra[1, 0] * Rb[1, 0] + Ra[2, 0] * Rb[2, 0]
-        r01 = Ra[0, 0] * Rb[0, 1] + Ra[1, 0] * Rb[1, 1] + Ra[2, 0] * Rb[2, 1]
-        r02 = Ra[0, 0] * Rb[0, 2] + Ra[1, 0] * Rb[1, 2] + Ra[2, 0] * Rb[2, 2]
-        r10 = Ra[0, 1] * Rb[0, 0] + Ra[1, 1] * Rb[1, 0] + Ra[2, 1] * Rb[2, 0]
-        r11 = Ra[0, 1] * Rb[0, 1] + Ra[1, 1] * Rb[1, 1] + Ra[2, 1] * Rb[2, 1]
-        r12 = Ra[0, 1] * Rb[0, 2] + Ra[1, 1] * Rb[1, 2] + Ra[2, 1] * Rb[2, 2]
-        r20 = Ra[0, 2] * Rb[0, 0] + Ra[1, 2] * Rb[1, 0] + Ra[2, 2] * Rb[2, 0]
-        r21 = Ra[0, 2] * Rb[0, 1] + Ra[1, 2] * Rb[1, 1] + Ra[2, 2] * Rb[2, 1]
-        r22 = Ra[0, 2] * Rb[0, 2] + Ra[1, 2] * Rb[1, 2] + Ra[2, 2] * Rb[2, 2]
-        ra = arad[ka]
-        rb = brad[kb]
-        # Scale-aware tolerance: rounding grows with the sizes involved, and
-        # the world positions themselves are only known to eps |c|.
-        tol = (atol + rtol * (ra + rb + math.sqrt(px * px + py * py + pz * pz))
-               + 4.0 * eps * (math.sqrt(ox * ox + oy * oy + oz * oz)
-                              + math.sqrt((dx + ox) ** 2 + (dy + oy) ** 2 + (dz + oz) ** 2)))
-        sa = aoff[ka]
-        na = aoff[ka + 1] - sa
-        sb = boff[kb]
-        nb = boff[kb + 1] - sb
-        hit, case, cx, cy, cz = pair_test(
-            avx, avy, aeang, aetab, avang, ainv, sa, na, ra,
-            bvx, bvy, beang, betab, sb, nb, rb,
-            px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22, tol)
+        hit, case, cx, cy, cz = pair_world(
+            avx, avy, aeang, aetab, avang, ainv, aoff, arad, acen, min(i, nsa - 1),
+            bvx, bvy, beang, betab, boff, brad, bcen, min(i, nsb - 1),
+            pos_a[min(i, npa - 1)], rot_a[min(i, nra - 1)], pos_b[min(i, npb - 1)], rot_b[min(i, nrb - 1)],
+            rtol, atol, eps)
         hit_out[i] = hit
         case_out[i] = case
         if want_contact:
-            if hit:
-                contact_out[i, 0] = ox + Ra[0, 0] * cx + Ra[0, 1] * cy + Ra[0, 2] * cz
-                contact_out[i, 1] = oy + Ra[1, 0] * cx + Ra[1, 1] * cy + Ra[1, 2] * cz
-                contact_out[i, 2] = oz + Ra[2, 0] * cx + Ra[2, 1] * cy + Ra[2, 2] * cz
-            else:
-                contact_out[i, 0] = math.nan
-                contact_out[i, 1] = math.nan
-                contact_out[i, 2] = math.nan
+            contact_out[i, 0] = cx
+            contact_out[i, 1] = cy
+            contact_out[i, 2] = cz
 
 
 def _variant(func, name):
@@ -108,9 +119,16 @@ collide_serial = njit(cache=True, parallel=False)(_variant(_collide_loop, "colli
 collide_parallel = njit(cache=True, parallel=True)(_variant(_collide_loop, "collide_parallel"))
 
 
+#: Batches smaller than this run on the serial kernel when ``parallel`` is
+#: left to choose: starting the threads (OpenMP here) can cost milliseconds.
+PARALLEL_MIN_PAIRS = 4096
+
+
 def run(a_arrays, b_arrays, pos_a, rot_a, pos_b, rot_b, n, rtol, atol,
         want_contact, parallel):
-    """Allocate outputs and call the serial or parallel kernel."""
+    """Allocate outputs and call the serial or parallel kernel (None: by batch size)."""
+    if parallel is None:
+        parallel = n >= PARALLEL_MIN_PAIRS
     hit = np.empty(n, dtype=np.bool_)
     case = np.empty(n, dtype=np.int8)
     # A status-only call gets a (0, 3) placeholder: no memory, no writes.
@@ -119,3 +137,28 @@ def run(a_arrays, b_arrays, pos_a, rot_a, pos_b, rot_b, n, rtol, atol,
     kern(*a_arrays, *b_arrays, pos_a, rot_a, pos_b, rot_b,
          rtol, atol, float(np.finfo(pos_a.dtype).eps), want_contact, hit, case, contact)
     return hit, case, contact
+
+
+@njit(cache=True)
+def collide_pair(avx, avy, aeang, aetab, avang, ainv, aoff, arad, acen,
+                 bvx, bvy, beang, betab, bvang, binv, boff, brad, bcen,
+                 Pa, Ra, Pb, Rb, rtol, atol, eps, ortho_tol):
+    """One pair, with its input checks compiled in (the low-latency path).
+
+    Returns (problem, value, hit, case, cx, cy, cz). ``problem`` 0 means the
+    inputs are valid; otherwise it names the first bad input (see
+    collide.PAIR_PROBLEMS) and ``value`` gives the offending number.
+    """
+    nan = math.nan
+    for k, P in enumerate((Pa, Pb)):
+        for j in range(3):
+            if not math.isfinite(P[j]):
+                return 1 + 4 * k, nan, False, 0, nan, nan, nan
+    for k, R in enumerate((Ra, Rb)):
+        _, kind, val = first_bad_rotation(R.reshape((1, 3, 3)), ortho_tol)
+        if kind != 0:
+            return 1 + kind + 4 * k, val, False, 0, nan, nan, nan
+    hit, case, cx, cy, cz = pair_world(avx, avy, aeang, aetab, avang, ainv, aoff, arad, acen, 0,
+                                       bvx, bvy, beang, betab, boff, brad, bcen, 0,
+                                       Pa, Ra, Pb, Rb, rtol, atol, eps)
+    return 0, 0.0, hit, case, cx, cy, cz

@@ -6,6 +6,7 @@ import argparse
 import sys
 
 from . import __version__
+from .experiment import PLANTS, PRISMS
 
 
 def _demo(args):
@@ -25,6 +26,28 @@ def _demo(args):
     print("case  pairs       share  meaning")
     for k, v in sorted(res["case_counts"].items()):
         print(f"{k:>4}  {v:>10,}  {100.0 * v / res['n_pairs']:5.1f} %  {CASES[k][:70]}")
+    return 0
+
+
+def _experiment(args):
+    from .experiment import format_summary, run_experiment, write_experiment
+
+    res = run_experiment(args.prism, vertices=args.vertices, plant=args.plant, duration=args.duration, dt=args.dt,
+                         max_speed=args.max_speed, mass=args.mass, damping=args.damping, detach_tol=args.detach_tol,
+                         fcl=not args.no_fcl)
+    for line in format_summary(res):
+        print(line)
+    if args.out is None:
+        print("(no files written: pass --out DIR for the trajectory CSV, JSON metadata, Markdown summary and figures)")
+        return 0
+    try:
+        paths = write_experiment(res, args.out, figures=not args.no_figures)
+    except ImportError as exc:
+        print(f"prismbatch: error: {exc} (or pass --no-figures)", file=sys.stderr)
+        return 2
+    print(f"wrote {paths['csv']}, {paths['json']}, {paths['markdown']}")
+    for f in paths["figures"]:
+        print(f"wrote {f}")
     return 0
 
 
@@ -48,6 +71,32 @@ def build_parser():
     d.add_argument("--contact", action="store_true", help="also compute contact points")
     d.add_argument("--no-progress", action="store_true", help="no progress bar")
     d.set_defaults(func=_demo)
+    e = sub.add_parser("experiment", help="simulate the paper's manipulation experiment (Sec. VI-B) with detach control",
+                       description="Simulate the paper's experiment: b (a 1.5 mm protective cylinder) is driven by a "
+                                   "PD attraction from dC = [2551, -2780, -1970] um to [0, 0, 1000] um past prism a; "
+                                   "collisions trigger the detach controller for one step. Prints the case sequence, "
+                                   "collisions, contact classes, whether the goal is reached, and the detection cost "
+                                   "against python-fcl on the same trajectory. See prismbatch/experiment.py.")
+    e.add_argument("--prism", choices=sorted(PRISMS), default="square",
+                   help="object a: square prism, side 3 mm, or triangular prism, side 2.8 mm (default: square)")
+    e.add_argument("--vertices", type=int, default=3600, help="vertices of b's end face (default: 3600)")
+    e.add_argument("--plant", choices=list(PLANTS), default="velocity",
+                   help="velocity: the stage follows the commanded velocity; force: m dv/dt = u - c v "
+                        "(default: velocity)")
+    e.add_argument("--duration", type=float, default=20.0, help="simulated time in s (default: 20)")
+    e.add_argument("--dt", type=float, default=0.02, help="sampling period in s (default: 0.02)")
+    e.add_argument("--max-speed", type=float, default=None,
+                   help="limit the PD command to this speed in mm/s (default: no limit)")
+    e.add_argument("--mass", type=float, default=0.1, help="force plant: mass in kg (default: 0.1)")
+    e.add_argument("--damping", type=float, default=1.0, help="force plant: viscous friction in mN s/mm (default: 1)")
+    e.add_argument("--detach-tol", type=float, default=None, metavar="MM",
+                   help="tolerance (mm) for classifying the contact point on a's features "
+                        "(default: the distance b moved in the last step)")
+    e.add_argument("--out", default=None, metavar="DIR",
+                   help="write CSV, JSON, Markdown and figures (PNG, SVG) to DIR (default: print only)")
+    e.add_argument("--no-figures", action="store_true", help="with --out: skip the figures (no matplotlib needed)")
+    e.add_argument("--no-fcl", action="store_true", help="skip the python-fcl timing")
+    e.set_defaults(func=_experiment)
     return p
 
 

@@ -3,15 +3,16 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
 from . import _batch
 from ._projection import CASES
-from .poses import as_pose, common_batch_size
+from .poses import ORTHO_TOL_F32, ORTHO_TOL_F64, as_pose, common_batch_size
 from .shapes import as_prism_set
 
-__all__ = ["collide", "Collider", "CollisionResult", "CASES", "DEFAULT_RTOL"]
+__all__ = ["collide", "Collider", "CollisionResult", "PairResult", "CASES", "DEFAULT_RTOL"]
 
 #: Default relative tolerance per dtype. The absolute tolerance of a pair is
 #: ``atol + rtol * (R_a + R_b + |c_b - c_a|) + 4 eps (|c_a| + |c_b|)`` (bounding
@@ -41,7 +42,7 @@ class CollisionResult:
     def contact(self) -> np.ndarray:
         """(N, 3) contact points in world coordinates, NaN rows where no hit.
 
-        Each point lies inside both prisms within the pair's tolerance.
+        Each point lies inside both prisms within twice the pair's tolerance.
         Only available when :func:`collide` was called with ``contact=True``.
         """
         if self._contact is None:
@@ -87,6 +88,8 @@ class Collider:
         self.shape_a, self.shape_b = shape_a, shape_b
         self._a = set_a.kernel_arrays(dt)
         self._b = set_b.kernel_arrays(dt)
+        self._eps = float(np.finfo(dt).eps)
+        self._ortho_tol = ORTHO_TOL_F64 if dt == np.float64 else ORTHO_TOL_F32
         self._n_shapes = None
         for per, s, nm in ((self._a_per, set_a, "shape_a"), (self._b_per, set_b, "shape_b")):
             if per:
@@ -96,7 +99,7 @@ class Collider:
                 self._n_shapes = len(s)
 
     def collide(self, pos_a, rot_a=None, pos_b=None, rot_b=None, *, contact=False, quat_order=None,
-                parallel=True):
+                parallel=None):
         """Test the pose pairs; see :func:`collide` for the arguments."""
         if pos_b is None:
             raise TypeError("collide needs a pose for b: pos_b (and rot_b, or a 4x4 transform as pos_b)")
@@ -109,12 +112,73 @@ class Collider:
         ra = np.ascontiguousarray(ra.reshape(-1, 3, 3), dtype=dt)
         rb = np.ascontiguousarray(rb.reshape(-1, 3, 3), dtype=dt)
         hit, case, cont = _batch.run(self._a, self._b, pa, ra, pb, rb, n,
-                                     self.rtol, self.atol, bool(contact), bool(parallel))
+                                     self.rtol, self.atol, bool(contact),
+                                     None if parallel is None else bool(parallel))
         return CollisionResult(hit, case, cont if contact else None)
+
+    def collide_pair(self, pos_a, rot_a, pos_b, rot_b):
+        """One pose pair at the lowest latency: one compiled call, checks included.
+
+        For loops that query one pair at a time (a controller, a single-query
+        timing study). Poses must be a (3,) position and a (3, 3) rotation
+        matrix each; both shapes must be single prisms. The contact point
+        costs a few flops here and is always returned (NaN when no hit).
+
+        Returns
+        -------
+        PairResult
+            ``(hit, case, contact)``.
+
+        Raises
+        ------
+        ValueError
+            As :meth:`collide` for non-finite, non-orthonormal or reflected poses.
+        """
+        if self._a_per or self._b_per:
+            raise TypeError("collide_pair needs single Prism shapes, not PrismSets")
+        f = self._pair_array
+        Pa, Ra, Pb, Rb = f(pos_a, (3,), "pos_a"), f(rot_a, (3, 3), "rot_a"), f(pos_b, (3,), "pos_b"), f(rot_b, (3, 3), "rot_b")
+        problem, val, hit, case, cx, cy, cz = _batch.collide_pair(
+            *self._a, *self._b, Pa, Ra, Pb, Rb, self.rtol, self.atol, self._eps, self._ortho_tol)
+        if problem:
+            raise ValueError(PAIR_PROBLEMS[problem].format(val))
+        return PairResult(bool(hit), int(case), np.array([cx, cy, cz]))
+
+    def _pair_array(self, x, shape, name):
+        a = np.asarray(x)
+        if a.dtype != self.dtype or a.shape != shape or not a.flags.c_contiguous:
+            if a.dtype.kind not in "iuf":
+                raise TypeError(f"{name} must have a real numeric dtype, got {a.dtype}")
+            if a.shape != shape:
+                raise ValueError(f"{name} has shape {a.shape}; collide_pair takes {shape} (use collide for "
+                                 f"batches, quaternions or transforms)")
+            a = np.ascontiguousarray(a, dtype=self.dtype)
+        return a
+
+
+#: Problems reported by the one-pair path, by code (see Collider.collide_pair).
+PAIR_PROBLEMS = {
+    1: "pos_a contains non-finite values (NaN or inf)",
+    2: "rot_a contains non-finite values (NaN or inf)",
+    3: "rot_a is not orthonormal: max |R^T R - I| = {:.3e}",
+    4: "rot_a is a reflection (det = {:.6g}); a rotation must have det = +1",
+    5: "pos_b contains non-finite values (NaN or inf)",
+    6: "rot_b contains non-finite values (NaN or inf)",
+    7: "rot_b is not orthonormal: max |R^T R - I| = {:.3e}",
+    8: "rot_b is a reflection (det = {:.6g}); a rotation must have det = +1",
+}
+
+
+class PairResult(NamedTuple):
+    """Result of :meth:`Collider.collide_pair`: hit, case and contact of one pair."""
+
+    hit: bool
+    case: int
+    contact: np.ndarray
 
 
 def collide(shape_a, shape_b, pos_a, rot_a=None, pos_b=None, rot_b=None, *, contact=False,
-            quat_order=None, rtol=None, atol=0.0, dtype=np.float64, parallel=True):
+            quat_order=None, rtol=None, atol=0.0, dtype=np.float64, parallel=None):
     """Collision status of two convex semi-infinite prisms for a batch of poses.
 
     Parameters
@@ -142,8 +206,10 @@ def collide(shape_a, shape_b, pos_a, rot_a=None, pos_b=None, rot_b=None, *, cont
     dtype : {numpy.float64, numpy.float32}, optional
         Precision of the stored shapes and poses (float32 halves memory
         traffic; its default rtol is 1e-5).
-    parallel : bool, optional
-        Spread pairs over Numba's threads (``numba.get_num_threads()``).
+    parallel : bool or None, optional
+        Spread pairs over Numba's threads (``numba.get_num_threads()``). None
+        (default) does so for batches of 4096 pairs or more; thread start-up
+        costs more than a small batch.
 
     Returns
     -------

@@ -31,6 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit, prange
 
+from ._batch import PARALLEL_MIN_PAIRS, _variant
 from ._planar import wedge_edge
 from .poses import as_pose, common_batch_size
 from .shapes import as_prism_set
@@ -91,8 +92,7 @@ def _outward_dir(nx, ny, nz, ex, ey, ez, dbx, dby, dbz, dax, day, daz):
     return cx / cn, cy / cn, cz / cn
 
 
-@njit(cache=True, parallel=True)
-def _detach_kernel(avx, avy, avang, ainv, aoff, acen, pos_a, rot_a, rot_b, contact, tol,
+def _detach_loop(avx, avy, avang, ainv, aoff, acen, pos_a, rot_a, rot_b, contact, tol,
                    cls_out, dir_out, depth_out):
     n = cls_out.shape[0]
     nsa = aoff.shape[0] - 1
@@ -220,6 +220,10 @@ def _detach_kernel(avx, avy, avang, ainv, aoff, acen, pos_a, rot_a, rot_b, conta
         depth_out[i] = depth
 
 
+_detach_serial = njit(cache=True)(_variant(_detach_loop, "detach_serial"))
+_detach_parallel = njit(cache=True, parallel=True)(_variant(_detach_loop, "detach_parallel"))
+
+
 @dataclass(frozen=True)
 class DetachResult:
     """Output of :func:`detach` for N pairs.
@@ -242,7 +246,8 @@ class DetachResult:
     depth: np.ndarray
 
 
-def detach(shape_a, contact, pos_a, rot_a, rot_b, state_error, *, eps=10.0, tol=None, quat_order=None):
+def detach(shape_a, contact, pos_a, rot_a, rot_b, state_error, *, eps=10.0, tol=None, quat_order=None,
+           parallel=None):
     """Detach direction and force for contacts on prism a (eqs. 42-46).
 
     Parameters
@@ -256,8 +261,10 @@ def detach(shape_a, contact, pos_a, rot_a, rot_b, state_error, *, eps=10.0, tol=
         a's poses, as for :func:`prismbatch.collide`.
     rot_b : array_like
         b's rotations (its axis d_b enters rows 1 and 2).
-    state_error : array_like, shape (N,) or (N, k) or scalar
+    state_error : array_like
         The state error ``x - x_d``; its Euclidean norm scales the force.
+        (N, k) rows for N pairs, or (N,) norms; for a single pair (one
+        contact row) a (k,) vector is that pair's error.
     eps : float, optional
         The detach gain ε (the paper uses 10).
     tol : float or array_like, optional
@@ -265,6 +272,9 @@ def detach(shape_a, contact, pos_a, rot_a, rot_b, state_error, *, eps=10.0, tol=
         edge, face). Default: 1e-9 times a's end-face radius plus a
         rounding floor; pass the pair tolerance of :func:`collide` or a
         physical tolerance for simulated contacts.
+    parallel : bool or None, optional
+        Spread pairs over Numba's threads; None (default) does so for large
+        batches only (thread start-up costs more than small batches).
 
     Returns
     -------
@@ -283,6 +293,8 @@ def detach(shape_a, contact, pos_a, rot_a, rot_b, state_error, *, eps=10.0, tol=
     err = np.asarray(state_error, dtype=np.float64)
     if not np.all(np.isfinite(err)):
         raise ValueError("state_error contains NaN or inf")
+    if err.ndim == 1 and len(c) == 1:
+        err = err[None, :]  # one pair's error vector
     errn = np.linalg.norm(err.reshape(err.shape[0], -1), axis=1) if err.ndim >= 1 else np.abs(err).reshape(1)
     n = common_batch_size(pa, ra, c[0] if len(c) == 1 else c, rb, n_shapes=len(set_a) if per else None)
     if len(c) not in (1, n) or len(errn) not in (1, n):
@@ -300,7 +312,10 @@ def detach(shape_a, contact, pos_a, rot_a, rot_b, state_error, *, eps=10.0, tol=
     direction = np.empty((n, 3))
     depth = np.empty(n)
     cc = np.ascontiguousarray(np.broadcast_to(c, (n, 3)))
-    _detach_kernel(set_a.vx, set_a.vy, set_a.vertex_angle, set_a.inv_edge_len, set_a.offsets, set_a.centre,
+    if parallel is None:
+        parallel = n >= PARALLEL_MIN_PAIRS
+    kern = _detach_parallel if parallel else _detach_serial
+    kern(set_a.vx, set_a.vy, set_a.vertex_angle, set_a.inv_edge_len, set_a.offsets, set_a.centre,
                    np.ascontiguousarray(pa.reshape(-1, 3)), np.ascontiguousarray(ra.reshape(-1, 3, 3)),
                    np.ascontiguousarray(rb.reshape(-1, 3, 3)), cc, np.ascontiguousarray(tol_arr), cls, direction,
                    depth)

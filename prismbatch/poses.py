@@ -104,7 +104,7 @@ def _check_finite(a64: np.ndarray, name: str, batched: bool, what: str = "") -> 
 
 
 @njit(cache=True)
-def _first_bad_rotation(Rb, tol):
+def first_bad_rotation(Rb, tol):
     """One pass over (N, 3, 3): (index, kind, value) of the first bad matrix.
 
     kind 0: all good; 1: non-finite; 2: not orthonormal (value = max error);
@@ -144,7 +144,7 @@ def _check_rotation_matrices(
     Rb = np.ascontiguousarray(R64 if batched else R64[None])
     if Rb.shape[0] == 0:
         return
-    i, kind, val = _first_bad_rotation(Rb, tol)
+    i, kind, val = first_bad_rotation(Rb, tol)
     where = _where(name, int(i) if batched else None)
     if kind == 1:
         raise ValueError(f"{where}{what} contains non-finite values (NaN or inf)")

@@ -1,0 +1,169 @@
+"""The paper's experiment (Sec. VI-B) in simulation, at reduced resolution (b: 360-gon).
+
+What the simulation robustly gives with the default velocity plant (checked here):
+the case sequence is 5 -> 6 -> 1; the first contact comes in case 6 at a's rim
+(the edge of its end face next to the side face b approaches: b's axis leans
+towards a, so the cylinder reaches the side face first at its top), the detach
+pushes b out of a and the next sample is collision-free; the square needs
+three such detaches (each return path is straight at the goal and grazes the
+same edge), the triangle one; then case 1 for good, and the goal is reached
+without further collision.
+"""
+
+import json
+
+import numpy as np
+import pytest
+
+from prismbatch.cli import main
+from prismbatch.control import CONTACT_CLASSES
+from prismbatch.experiment import (FIG10_TIMES, format_summary, projected_contour, run_experiment,
+                                   write_experiment)
+
+VERTS = 360
+
+
+@pytest.fixture(scope="module")
+def square():
+    return run_experiment("square", vertices=VERTS, timing=True, repeats=1)
+
+
+@pytest.fixture(scope="module")
+def triangle():
+    return run_experiment("triangle", vertices=VERTS, timing=False)
+
+
+def _outward_normal_nearest_edge(xy_local, rot_a, point):
+    """Outward unit normal (world) of the side face of a nearest to a world point (a at the origin)."""
+    P = xy_local @ rot_a[:, :2].T  # world vertices (z = 0)
+    c = P.mean(axis=0)
+    best, nbest = np.inf, None
+    for i in range(len(P)):
+        p0, p1 = P[i], P[(i + 1) % len(P)]
+        e = p1 - p0
+        f = np.clip((point - p0) @ e / (e @ e), 0, 1)
+        d = np.linalg.norm(point[:2] - (p0 + f * e)[:2])
+        n = np.array([e[1], -e[0], 0.0])
+        n /= np.linalg.norm(n)
+        if n @ (p0 - c) < 0:
+            n = -n
+        if d < best:
+            best, nbest = d, n
+    return nbest
+
+
+@pytest.mark.parametrize("name", ["square", "triangle"])
+def test_collision_is_detected_and_detached_out_of_a(name, request):
+    r = request.getfixturevalue(name)
+    s = r.summary
+    assert r.hit.any()
+    g = r.geometry
+    for k in np.flatnonzero(r.hit):
+        assert r.contact_class[k] in (2, 4), CONTACT_CLASSES[int(r.contact_class[k])]  # rim / side face
+        n = _outward_normal_nearest_edge(g["xy_a"], g["rot_a"], r.contact[k])
+        assert r.direction[k] @ n > 0.99  # points out of a, across the side face
+        err = np.linalg.norm(r.dc[k] - np.array(r.params["xd_um"]) * 1e-3)
+        np.testing.assert_allclose(r.u_d[k], r.params["eps"] * err * r.direction[k], rtol=1e-12)
+        assert r.case[k] == 6
+    assert s["first_contact_class"] == 2
+    # the detach acts for one step only
+    assert np.all(r.u_d[~r.hit] == 0.0)
+
+
+@pytest.mark.parametrize("name", ["square", "triangle"])
+def test_detach_separates_the_objects(name, request):
+    reference = pytest.importorskip("reference")
+    pytest.importorskip("scipy")
+    r = request.getfixturevalue(name)
+    g = r.geometry
+    for k, ev in zip(np.flatnonzero(r.hit), r.summary["events"]):
+        assert not r.hit[k + 1] and ev["next_step_collision_free"] and ev["step"] == k
+        m_prev, m_hit, m_next = (reference.margin_lp(g["xy_a"], g["pos_a"], g["rot_a"], g["xy_b"], r.dc[j],
+                                                     g["rot_b"]) for j in (k - 1, k, k + 1))
+        assert m_prev < 0.0 <= m_hit  # the hit is real and the sample before was free
+        assert m_next < -0.1  # a gap of at least 2 * 0.1 mm after the detach (the paper: "substantial margin")
+        assert (r.dc[k + 1] - r.dc[k]) @ r.direction[k] > 0.3  # moved out by more than 0.3 mm
+
+
+def test_case_sequence_and_goal(square, triangle):
+    for r in (square, triangle):
+        s = r.summary
+        assert s["case_sequence"] == [5, 6, 1]
+        assert s["goal_reached"] and s["final_error_um"] < r.params["goal_tol_um"]
+        assert s["goal_reached_without_further_collision"] is (r is triangle)
+        assert s["every_detach_followed_by_free_step"]
+        # no collision once b's end face is above a's plane (case 1 for good, to the end)
+        assert not r.hit[r.t >= s["case1_for_good_from_s"]].any()
+        assert s["fig10_cases"][0] == 5 and s["fig10_cases"][-1] == 1
+    assert square.summary["collision_episodes"] == 3 and square.summary["collision_samples"] == 3
+    assert triangle.summary["collision_samples"] == 1
+    # all detaches of the square happen before it clears a's plane
+    assert max(square.summary["collisions_after_first_detach_s"]) < square.summary["case1_for_good_from_s"]
+
+
+def test_force_plant_and_speed_limit_run():
+    r = run_experiment("triangle", vertices=36, plant="force", timing=False)
+    assert r.summary["case_sequence"] == [5, 6, 1] and r.hit.any() and r.summary["goal_reached"]
+    slow = run_experiment("triangle", vertices=36, max_speed=0.5, timing=False)
+    assert slow.summary["first_collision_s"] > run_experiment("triangle", vertices=36, timing=False).summary[
+        "first_collision_s"]
+    steady = np.linalg.norm(np.diff(slow.dc, axis=0), axis=1)[~slow.hit[:-1]] / slow.params["dt_s"]
+    assert steady.max() <= 0.5 + 1e-9
+
+
+def test_bad_parameters():
+    with pytest.raises(ValueError, match="plant"):
+        run_experiment(plant="mass", vertices=36, timing=False)
+    with pytest.raises(ValueError, match="prism"):
+        run_experiment("pentagon", vertices=36, timing=False)
+    with pytest.raises(ValueError, match="dt"):
+        run_experiment(dt=0.0, vertices=36, timing=False)
+
+
+def test_projected_contour():
+    xy = np.array([[1.0, 0], [0, 1], [-1, 0], [0, -1]])
+    down = np.diag([1.0, -1.0, -1.0])
+    # b facing a (axis up), end face above a's plane: nothing on a's side
+    assert projected_contour(xy, [0, 0, 0.5], np.eye(3), [0, 0, 0], down).shape == (0, 2)
+    # end face below the plane, axis exactly up: the projection is the end face itself
+    Q = projected_contour(xy, [3, 0, -0.5], np.eye(3), [0, 0, 0], down)
+    assert len(Q) == 4 and np.allclose(sorted(map(tuple, np.round(Q, 12))), sorted(map(tuple, xy + [3, 0])))
+
+
+def test_timing_and_fcl_agree(square):
+    tm = square.timing
+    assert tm["loop_ms"] > 0 and tm["pair_ms"] > 0 and tm["batch_ms"] > 0
+    assert tm["batch_agrees_with_loop"]
+    if tm.get("fcl_ms") is not None:
+        assert tm["fcl_disagreements"] == 0
+    assert any("detection cost" in line for line in format_summary(square))
+
+
+def test_writer(square, tmp_path):
+    paths = write_experiment(square, tmp_path, figures=False)
+    rows = open(paths["csv"]).read().splitlines()
+    assert len(rows) == 1 + len(square.t) and rows[0].startswith("t_s,dC_x_um")
+    meta = json.load(open(paths["json"]))
+    assert meta["parameters"]["vertices"] == VERTS and meta["versions"]["prismbatch"]
+    assert meta["summary"]["case_sequence"] == [5, 6, 1]
+    assert "| case sequence |" in open(paths["markdown"]).read()
+
+
+def test_writer_figures(square, tmp_path):
+    pytest.importorskip("matplotlib")
+    paths = write_experiment(square, tmp_path, figures=True)
+    assert len(paths["figures"]) == 6
+    for f in paths["figures"]:
+        data = open(f, "rb").read()
+        assert len(data) > 5000
+        assert data[:4] == b"\x89PNG" if f.endswith(".png") else b"<svg" in data[:2000]
+    assert len(FIG10_TIMES) == 8
+
+
+def test_cli_experiment(capsys, tmp_path):
+    assert main(["experiment", "--prism", "triangle", "--vertices", "36", "--duration", "6", "--no-fcl",
+                 "--out", str(tmp_path), "--no-figures"]) == 0
+    out = capsys.readouterr().out
+    assert "case sequence: 5" in out and "collision: first at" in out and "wrote" in out
+    assert (tmp_path / "experiment_triangle_trajectory.csv").exists()
+    assert main(["experiment", "--dt", "-1"]) == 2
