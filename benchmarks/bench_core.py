@@ -224,6 +224,9 @@ def bench_cell(n, pose_name, args, all_threads, ref, log, waiter):
     with threads(1):
         rows["pb_1t_single_pair_call"] = summarize(
             *time_repeats(pb_call(*one, False, False), max(rep, 200), warmup=5), 1)
+        pair = tuple(np.ascontiguousarray(x[0]) for x in full)
+        rows["pb_collide_pair_call"] = summarize(
+            *time_repeats(lambda: col.collide_pair(*pair), max(rep, 200), warmup=5), 1)
     res_par = col.collide(*full, parallel=True)
     mismatch_serial_parallel = int(np.count_nonzero(res_par.hit != res_full.hit))
     mismatch_status_contact = int(np.count_nonzero(res_contact.hit != res_full.hit))
@@ -535,12 +538,13 @@ def markdown_report(results, infos, meta, comp):
                  f"| {_cell(rows, 'sub_coal')} | {fcl_r:.1f}x | {coal_r:.1f}x | {tgt_s} |")
     L.append("")
     L.append("### Detail: median [min–max] µs per pair; thread use = process CPU time / wall time; "
-             "1-pair call = latency (µs) of one Collider.collide call on one pair; other procs = "
+             "1-pair call = latency (µs) of one Collider.collide call on one pair, and of one "
+             "Collider.collide_pair call (the low-latency path); other procs = "
              "CPUs kept busy by other processes during the cell (from /proc/stat)\n")
     L.append("| n | poses | pb 1T status | pb 1T contact | contact overhead | pb all-T status "
              "| pb all-T contact | all-T speed-up | all-T thread use | kernel-only 1T | "
-             "kernel-only all-T (thread use) | FCL | coal | 1-pair call | other procs (CPUs) |")
-    L.append("|---:|:---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+             "kernel-only all-T (thread use) | FCL | coal | 1-pair call | collide_pair call | other procs (CPUs) |")
+    L.append("|---:|:---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for (n, pose), rows in results.items():
         s1, c1 = rows["pb_1t_status"]["median_us"], rows["pb_1t_contact"]["median_us"]
         sa = rows["pb_all_status"]["median_us"]
@@ -551,7 +555,8 @@ def markdown_report(results, infos, meta, comp):
                  f"| {_spread(rows, 'pb_all_contact')} | {s1 / sa:.2f}x "
                  f"| {rows['pb_all_status']['cpu_per_wall']:.2f} | {_spread(rows, 'kernel_1t_status')} "
                  f"| {ka_s} | {_spread(rows, 'sub_fcl')} | {_spread(rows, 'sub_coal')} "
-                 f"| {_cell(rows, 'pb_1t_single_pair_call')} | {_fmt(infos[(n, pose)]['other_processes_cpus'])} |")
+                 f"| {_cell(rows, 'pb_1t_single_pair_call')} | {_cell(rows, 'pb_collide_pair_call')} "
+                 f"| {_fmt(infos[(n, pose)]['other_processes_cpus'])} |")
     L.append("")
     L.append("### Agreement on the peer subset (peers use finite stand-ins)\n")
     L.append("| n | poses | subset | stand-in length | FCL disagreements (pb hit / peer hit) "
@@ -707,7 +712,7 @@ def main(argv=None):
             "pb 1T = Collider.collide(parallel=False) under numba.set_num_threads(1)",
             "pb all-T = Collider.collide(parallel=True) with all Numba threads",
             "kernel-only = prismbatch._batch.run (private), no pose validation/conversion",
-            "1-pair call = latency of Collider.collide on a single pair (1 thread)",
+            "1-pair call = latency of Collider.collide on a single pair (1 thread); collide_pair call = latency of Collider.collide_pair",
             "thread use = process CPU time / wall time over >= 0.4 s of back-to-back calls",
             "peers: per query 2x setTransform + collide with fresh request/result; objects built once",
             "coal stand-ins use strip-triangulated caps (peers.coal_prism's fan fails for n >= ~256)",
