@@ -228,7 +228,7 @@ class PrismSet:
     """
 
     def __init__(self, polygons):
-        if isinstance(polygons, (Prism, np.ndarray)) and not isinstance(polygons, Prism) and np.ndim(polygons) == 2:
+        if isinstance(polygons, np.ndarray) and polygons.ndim == 2:
             raise TypeError("PrismSet takes a sequence of polygons; wrap a single polygon as [xy] or use Prism")
         if isinstance(polygons, Prism):
             polygons = [polygons]
