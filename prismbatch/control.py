@@ -296,9 +296,12 @@ def detach(shape_a, contact, pos_a, rot_a, rot_b, state_error, *, eps=10.0, tol=
     if err.ndim == 1 and len(c) == 1:
         err = err[None, :]  # one pair's error vector
     errn = np.linalg.norm(err.reshape(err.shape[0], -1), axis=1) if err.ndim >= 1 else np.abs(err).reshape(1)
-    n = common_batch_size(pa, ra, c[0] if len(c) == 1 else c, rb, n_shapes=len(set_a) if per else None)
+    n = common_batch_size(pa, ra, np.zeros(3), rb, n_shapes=len(set_a) if per else None)
+    if n == 1:
+        n = len(c)  # the contacts set the batch when every pose is single
     if len(c) not in (1, n) or len(errn) not in (1, n):
-        raise ValueError(f"contact has {len(c)} rows and state_error {len(errn)}; expected 1 or {n}")
+        raise ValueError(f"batch sizes do not match: contact has {len(c)} rows, state_error {len(errn)}, "
+                         f"poses and shapes {n}")
     if not (np.isfinite(eps) and eps >= 0):
         raise ValueError(f"eps must be finite and >= 0, got {eps}")
     if tol is None:

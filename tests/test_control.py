@@ -132,3 +132,18 @@ def test_fraction_of_random_colliding_pairs_where_a_step_reduces_penetration():
           f"random colliding pairs ({100 * frac:.1f} %); classes {np.bincount(d.contact_class, minlength=7)}")
     assert len(idx) > 100
     assert frac > 0.5
+
+
+def test_batch_size_mismatch_is_named():
+    with pytest.raises(ValueError, match="contact has 3 rows, state_error 2"):
+        detach(A, np.zeros((3, 3)), np.zeros(3), DOWN, np.eye(3), np.ones((2, 3)))
+    with pytest.raises(ValueError, match="contact has 3 rows"):
+        detach(A, np.zeros((3, 3)), np.zeros((4, 3)), DOWN, np.eye(3), np.ones(4))
+
+
+def test_single_pair_error_vector_and_broadcast_contacts():
+    r = detach(A, [0.2, 0.1, -0.3], np.zeros(3), DOWN, np.eye(3), [3.0, 4.0, 0.0])
+    np.testing.assert_allclose(r.force[0], [0, 0, 50.0], atol=1e-12)
+    r = detach(A, np.array([[1, 0.2, -0.5], [0, 0, 0]]), np.zeros(3), DOWN, np.eye(3), [1.0, 2.0])
+    assert r.contact_class.tolist() == [4, 5]
+    np.testing.assert_allclose(np.linalg.norm(r.force, axis=1), [10.0, 20.0])
