@@ -176,3 +176,23 @@ def test_serial_and_parallel_kernels_have_separate_cache_entries():
     assert len(names) == 2
     idx = {d._cache._cache_file._index_name for d in (_batch.collide_serial, _batch.collide_parallel)}
     assert len(idx) == 2
+
+
+def test_single_plain_pair_takes_the_one_pair_path_with_identical_results():
+    import prismbatch as pb
+    from prismbatch.sampling import free_poses
+
+    a, b = pb.Prism.regular(7, 1.0), pb.Prism.regular(5, 0.8)
+    P = free_poses(300, np.random.default_rng(4), radius=0.8)
+    col = pb.Collider(a, b)
+    batch = col.collide(*P, contact=True, parallel=False)
+    assert batch.hit.any() and not batch.hit.all()
+    for i in range(300):
+        one = col.collide(P[0][i], P[1][i], P[2][i], P[3][i], contact=True)
+        pair = col.collide_pair(P[0][i], P[1][i], P[2][i], P[3][i])
+        assert one.hit.shape == (1,) and one.contact.shape == (1, 3)
+        assert one.hit[0] == batch.hit[i] == pair.hit and one.case[0] == batch.case[i] == pair.case
+        np.testing.assert_array_equal(one.contact[0], batch.contact[i])
+    bad = P[1][0] * 1.01
+    with pytest.raises(ValueError, match="rot_a is not orthonormal"):
+        col.collide(P[0][0], bad, P[2][0], P[3][0])
