@@ -20,7 +20,6 @@ import math
 from numba import njit
 
 TWO_PI = 2.0 * math.pi
-HALF_PI = 0.5 * math.pi
 
 # Spec tuple layout (all float64). Indices are named for readability.
 SP_PX, SP_PY = 0, 1
@@ -336,7 +335,6 @@ def gjk(avx, avy, aeang, aetab, sa, na, bvx, bvy, beang, betab, sb, nb, sp, tol)
     bx, by, bu, bv, bt = support_spec(bvx, bvy, beang, betab, sb, nb, sp, -dx, -dy)
     p0 = (avx[sa + ka] - bx, avy[sa + ka] - by, avx[sa + ka], avy[sa + ka], bu, bv, bt)
     p1 = p0
-    p2 = p0
     k = 1
     vx_ = p0[0]
     vy_ = p0[1]

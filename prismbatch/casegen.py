@@ -41,7 +41,7 @@ from __future__ import annotations
 import numpy as np
 
 from .collide import Collider
-from .sampling import AXIS_DOWN, random_rotations
+from .sampling import AXIS_DOWN, random_rotations, spins_about_z
 from .shapes import Prism
 
 __all__ = ["case_poses", "CASE_NUMBERS", "EXACT_CASES", "HIT_AND_MISS_CASES"]
@@ -156,14 +156,7 @@ def _axis_aligned_rotations(k, rng):
     P[rows, cols, np.arange(3)[None, :]] = signs
     det = np.linalg.det(P)
     P[:, :, 0] *= np.sign(det)[:, None]  # make it proper; column 2 is untouched
-    phi = rng.uniform(0.0, 2.0 * np.pi, k)
-    Z = np.zeros((k, 3, 3))
-    Z[:, 0, 0] = np.cos(phi)
-    Z[:, 0, 1] = -np.sin(phi)
-    Z[:, 1, 0] = np.sin(phi)
-    Z[:, 1, 1] = np.cos(phi)
-    Z[:, 2, 2] = 1.0
-    return P @ Z
+    return P @ spins_about_z(rng.uniform(0.0, 2.0 * np.pi, k))
 
 
 class _Builder:

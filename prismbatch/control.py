@@ -33,7 +33,7 @@ from numba import njit, prange
 
 from ._batch import PARALLEL_MIN_PAIRS, _variant
 from ._planar import wedge_edge
-from .poses import as_pose, common_batch_size
+from .poses import as_pose, as_rotations, common_batch_size
 from .shapes import as_prism_set
 
 __all__ = ["detach", "DetachResult", "CONTACT_CLASSES"]
@@ -60,6 +60,16 @@ def _seg_dist(px, py, x0, y0, x1, y1):
     f = ((px - x0) * ex + (py - y0) * ey) / ee if ee > 0.0 else 0.0
     f = min(max(f, 0.0), 1.0)
     return math.hypot(px - x0 - f * ex, py - y0 - f * ey), f
+
+
+@njit(cache=True, inline="always")
+def _outward_normal(Ra, ex, ey):
+    """World outward unit normal of a's side face along local CCW edge (ex, ey)."""
+    en = math.hypot(ex, ey)
+    nlx = ey / en
+    nly = -ex / en
+    return (Ra[0, 0] * nlx + Ra[0, 1] * nly, Ra[1, 0] * nlx + Ra[1, 1] * nly,
+            Ra[2, 0] * nlx + Ra[2, 1] * nly)
 
 
 @njit(cache=True, inline="always")
@@ -158,31 +168,20 @@ def _detach_loop(avx, avy, avang, ainv, aoff, acen, pos_a, rot_a, rot_b, contact
             e1 = (ie + 1) % m
             ex = avx[s + e1] - avx[s + ie]
             ey = avy[s + e1] - avy[s + ie]
-        en = math.hypot(ex, ey)
-        nlx = ey / en  # outward normal of a CCW edge, local frame
-        nly = -ex / en
-        # to world
+        # edge (or edge sum) and outward side normal, in world coordinates
         wex = Ra[0, 0] * ex + Ra[0, 1] * ey
         wey = Ra[1, 0] * ex + Ra[1, 1] * ey
         wez = Ra[2, 0] * ex + Ra[2, 1] * ey
-        nx = Ra[0, 0] * nlx + Ra[0, 1] * nly
-        ny = Ra[1, 0] * nlx + Ra[1, 1] * nly
-        nz = Ra[2, 0] * nlx + Ra[2, 1] * nly
+        nx, ny, nz = _outward_normal(Ra, ex, ey)
         dax = Ra[0, 2]
         day = Ra[1, 2]
         daz = Ra[2, 2]
         depth = 0.0
-        if on_end and near_v:
-            c = VERTEX
+        if on_end and (near_v or near_e):  # rows 1, 2: eqs. (43)-(46)
+            c = VERTEX if near_v else END_EDGE
             cx, cy, cz = _outward_dir(nx, ny, nz, wex, wey, wez, Rb[0, 2], Rb[1, 2], Rb[2, 2], dax, day, daz)
-        elif on_end and near_e:
-            c = END_EDGE
-            cx, cy, cz = _outward_dir(nx, ny, nz, wex, wey, wez, Rb[0, 2], Rb[1, 2], Rb[2, 2], dax, day, daz)
-        elif near_v:
-            c = LATERAL_EDGE
-            cx, cy, cz = nx, ny, nz
-        elif near_e:
-            c = SIDE_FACE
+        elif near_v or near_e:  # rows 3, 4: normal to the lateral edge / side face
+            c = LATERAL_EDGE if near_v else SIDE_FACE
             cx, cy, cz = nx, ny, nz
         elif on_end:
             c = END_FACE
@@ -205,14 +204,7 @@ def _detach_loop(avx, avy, avang, ainv, aoff, acen, pos_a, rot_a, rot_b, contact
             else:
                 depth = max(dmin, 0.0)
                 j1 = (jmin + 1) % m
-                ex = avx[s + j1] - avx[s + jmin]
-                ey = avy[s + j1] - avy[s + jmin]
-                en = math.hypot(ex, ey)
-                nlx = ey / en
-                nly = -ex / en
-                cx = Ra[0, 0] * nlx + Ra[0, 1] * nly
-                cy = Ra[1, 0] * nlx + Ra[1, 1] * nly
-                cz = Ra[2, 0] * nlx + Ra[2, 1] * nly
+                cx, cy, cz = _outward_normal(Ra, avx[s + j1] - avx[s + jmin], avy[s + j1] - avy[s + jmin])
         cls_out[i] = c
         dir_out[i, 0] = cx
         dir_out[i, 1] = cy
@@ -282,7 +274,7 @@ def detach(shape_a, contact, pos_a, rot_a, rot_b, state_error, *, eps=10.0, tol=
     """
     set_a, per = as_prism_set(shape_a, "shape_a")
     pa, ra = as_pose(pos_a, rot_a, quat_order=quat_order, name="a")
-    rb = np.asarray(as_pose(np.zeros(3), rot_b, quat_order=quat_order, name="b")[1])
+    rb = as_rotations(rot_b, quat_order=quat_order, name="rot_b")
     c = np.asarray(contact, dtype=np.float64)
     if c.ndim == 1:
         c = c[None, :]

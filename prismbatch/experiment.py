@@ -81,6 +81,7 @@ import numpy as np
 
 from .collide import CASES, Collider
 from .control import CONTACT_CLASSES, detach
+from .sampling import rotation_with_axis
 from .shapes import Prism
 
 __all__ = ["run_experiment", "write_experiment", "format_summary", "ExperimentResult", "projected_contour",
@@ -110,17 +111,6 @@ _UM = 1e-3  # 1 µm in mm
 
 def _circumradius(n, side):
     return side / (2.0 * math.sin(math.pi / n))
-
-
-def _rotation_with_axis(d):
-    """A rotation whose third column is the unit vector d (first column: x̂ made orthogonal to d)."""
-    d = np.asarray(d, dtype=float)
-    d = d / np.linalg.norm(d)
-    ref = np.array([1.0, 0.0, 0.0]) if abs(d[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    x = ref - (ref @ d) * d
-    x /= np.linalg.norm(x)
-    y = np.cross(d, x)
-    return np.column_stack([x, y, d])
 
 
 def _runs(values, t):
@@ -309,7 +299,7 @@ def run_experiment(prism="square", *, vertices=3600, plant="velocity", duration=
     xy_b_real = shape_b.xy * (b_real_diameter_mm / b_diameter_mm)
     pos_a = np.zeros(3)
     rot_a = np.diag([1.0, -1.0, -1.0])
-    rot_b = _rotation_with_axis(d_b)
+    rot_b = rotation_with_axis(d_b)
     x0 = np.asarray(x0_um, float).reshape(3) * _UM
     xd = np.asarray(xd_um, float).reshape(3) * _UM
     n_steps = int(round(duration / dt))

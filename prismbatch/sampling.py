@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["random_rotations", "tilted_up", "facing_poses", "free_poses", "DISTRIBUTIONS"]
+__all__ = ["random_rotations", "spins_about_z", "rotation_with_axis", "tilted_up", "facing_poses", "free_poses", "DISTRIBUTIONS"]
 
 #: a's orientation in the paper's scene: axis d_a = [0, 0, -1] (body below).
 AXIS_DOWN = np.diag([1.0, -1.0, -1.0])
@@ -32,6 +32,28 @@ def random_rotations(n, rng):
     return R
 
 
+def spins_about_z(phi):
+    """Rotations (k, 3, 3) by the angles ``phi`` (k,) about the z axis."""
+    c, s = np.cos(phi), np.sin(phi)
+    Z = np.zeros((len(phi), 3, 3))
+    Z[:, 0, 0] = c
+    Z[:, 0, 1] = -s
+    Z[:, 1, 0] = s
+    Z[:, 1, 1] = c
+    Z[:, 2, 2] = 1.0
+    return Z
+
+
+def rotation_with_axis(d):
+    """A rotation whose third column is the unit vector along ``d`` (first column: x̂ made orthogonal to d)."""
+    d = np.asarray(d, dtype=float)
+    d = d / np.linalg.norm(d)
+    ref = np.array([1.0, 0.0, 0.0]) if abs(d[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    x = ref - (ref @ d) * d
+    x /= np.linalg.norm(x)
+    return np.column_stack([x, np.cross(d, x), d])
+
+
 def tilted_up(n, max_tilt, rng):
     """Rotations whose z axis is within ``max_tilt`` radians of +z, random spin."""
     tilt = max_tilt * np.sqrt(rng.uniform(0.0, 1.0, n))  # uniform over the cap (small angles)
@@ -51,14 +73,7 @@ def tilted_up(n, max_tilt, rng):
     T[:, 2, 0] = -ky * s
     T[:, 2, 1] = kx * s
     T[:, 2, 2] = c
-    cs, ss = np.cos(spin), np.sin(spin)
-    Z = np.zeros((n, 3, 3))
-    Z[:, 0, 0] = cs
-    Z[:, 0, 1] = -ss
-    Z[:, 1, 0] = ss
-    Z[:, 1, 1] = cs
-    Z[:, 2, 2] = 1.0
-    return T @ Z
+    return T @ spins_about_z(spin)
 
 
 def facing_poses(n, rng, *, radius=2.5, max_tilt=np.radians(15.0)):
