@@ -7,31 +7,12 @@ import time
 import numba
 import numpy as np
 
+from ._report import progress as progress_bar
 from .collide import CASES, Collider
 from .sampling import DISTRIBUTIONS
 from .shapes import Prism
 
 __all__ = ["run_demo"]
-
-
-def _progress(total, enabled):
-    """A tqdm bar when tqdm is installed and wanted, else a no-op."""
-    if enabled:
-        try:
-            from tqdm import tqdm
-
-            return tqdm(total=total, unit="pair", unit_scale=True, leave=False)
-        except ImportError:
-            pass
-
-    class _Null:
-        def update(self, n):
-            pass
-
-        def close(self):
-            pass
-
-    return _Null()
 
 
 def run_demo(n_pairs=1_000_000, n_vertices=360, distribution="facing", seed=0, chunk=250_000,
@@ -64,7 +45,7 @@ def run_demo(n_pairs=1_000_000, n_vertices=360, distribution="facing", seed=0, c
     run_s = 0.0
     hits = 0
     counts = np.zeros(max(CASES) + 1, dtype=np.int64)
-    bar = _progress(n_pairs, progress)
+    bar = progress_bar(n_pairs, enabled=progress)
     done = 0
     while done < n_pairs:
         m = min(chunk, n_pairs - done)

@@ -67,18 +67,15 @@ Markdown summary and the figures (PNG and SVG; needs matplotlib).
 
 from __future__ import annotations
 
-import csv
-import json
 import math
 import os
-import platform
-import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from ._report import new_figure, run_metadata, save_figure, write_csv, write_json
 from .collide import CASES, Collider
 from .control import CONTACT_CLASSES, detach
 from .sampling import rotation_with_axis
@@ -511,31 +508,6 @@ def _fmt_t(x):
     return "-" if x is None else f"{x:.2f} s"
 
 
-def _pkg_versions():
-    from importlib import metadata
-
-    from . import __version__
-
-    v = {"prismbatch": __version__, "python": platform.python_version()}
-    for name in ("numpy", "numba", "python-fcl", "matplotlib"):
-        try:
-            v[name] = metadata.version(name)
-        except metadata.PackageNotFoundError:
-            v[name] = None
-    return v
-
-
-def _cpu_name():
-    try:
-        with open("/proc/cpuinfo") as f:
-            for line in f:
-                if line.startswith("model name"):
-                    return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or platform.machine()
-
-
 def format_summary(res):
     """The run's summary as text lines (printed by ``prismbatch experiment``)."""
     from . import __version__
@@ -614,22 +586,6 @@ def _csv_rows(res):
     return header, rows
 
 
-def _jsonable(x):
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return _jsonable(x.tolist())
-    if isinstance(x, (np.integer,)):
-        return int(x)
-    if isinstance(x, (np.floating, float)):
-        return None if not math.isfinite(float(x)) else float(x)
-    if isinstance(x, (np.bool_,)):
-        return bool(x)
-    return x
-
-
 def _markdown(res, figure_files):
     p, s, tm = res.params, res.summary, res.timing
     unit = "µm/s" if p["plant"] == "velocity" else "µN"
@@ -684,58 +640,23 @@ def write_experiment(res, out_dir, *, figures=True):
     stem = f"experiment_{res.params['prism']}"
     paths = {"csv": str(out / f"{stem}_trajectory.csv"), "json": str(out / f"{stem}.json"),
              "markdown": str(out / f"{stem}.md"), "figures": []}
-    header, rows = _csv_rows(res)
-    with open(paths["csv"], "w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(header)
-        w.writerows(rows)
+    write_csv(paths["csv"], *_csv_rows(res))
     if figures:
         paths["figures"] = plot_experiment(res, out, stem=stem)
-    meta = dict(description="prismbatch simulation of the paper's Sec. VI-B experiment", versions=_pkg_versions(),
-                machine=dict(cpu=_cpu_name(), platform=platform.platform(), numba_threads=_numba_threads()),
-                command=" ".join(sys.argv), parameters=res.params, summary=res.summary, timing=res.timing,
-                paper=PAPER, cases={int(k): v for k, v in CASES.items()}, contact_classes=CONTACT_CLASSES,
-                files={k: (os.path.basename(v) if isinstance(v, str) else [os.path.basename(x) for x in v])
-                       for k, v in paths.items()})
-    with open(paths["json"], "w") as f:
-        json.dump(_jsonable(meta), f, indent=2, ensure_ascii=False)
+    meta = run_metadata(description="prismbatch simulation of the paper's Sec. VI-B experiment",
+                        parameters=res.params, summary=res.summary, timing=res.timing, paper=PAPER,
+                        cases={int(k): v for k, v in CASES.items()}, contact_classes=CONTACT_CLASSES,
+                        files={k: (os.path.basename(v) if isinstance(v, str) else [os.path.basename(x) for x in v])
+                               for k, v in paths.items()})
+    write_json(paths["json"], meta)
     with open(paths["markdown"], "w") as f:
         f.write(_markdown(res, paths["figures"]))
     return paths
 
 
-def _numba_threads():
-    try:
-        import numba
-
-        return numba.get_num_threads()
-    except Exception:  # pragma: no cover
-        return None
-
-
 # ---------------------------------------------------------------------------
 # figures
 # ---------------------------------------------------------------------------
-
-_MPL_MISSING = "the experiment's figures need matplotlib: pip install 'prismbatch[plot]'"
-
-
-def _figure(**kw):
-    try:
-        from matplotlib.figure import Figure  # noqa: PLC0415
-    except ImportError as exc:
-        raise ImportError(_MPL_MISSING) from exc
-    return Figure(**kw)
-
-
-def _save(fig, out, name):
-    files = []
-    for ext in ("png", "svg"):
-        p = str(Path(out) / f"{name}.{ext}")
-        fig.savefig(p, dpi=150 if ext == "png" else None)
-        files.append(p)
-    return files
-
 
 def plot_experiment(res, out_dir, *, stem="experiment"):
     """Draw the three figures (PNG and SVG); returns the file paths."""
@@ -760,7 +681,7 @@ def _plot_contours(res, out, name):
         panels.append((res.t[k], k, "first contact"))
     ncol = 3
     nrow = -(-len(panels) // ncol)
-    fig = _figure(figsize=(10.5, 3.35 * nrow + 0.6), layout="constrained")
+    fig = new_figure(figsize=(10.5, 3.35 * nrow + 0.6), layout="constrained")
     axes = fig.subplots(nrow, ncol, squeeze=False)
     Ra, pa = g["rot_a"], g["pos_a"]
     # the plane basis of projected_contour: e1 = R_a[:, 0], e2 = e1 x d_a; for the paper's a these are world x, y
@@ -810,7 +731,7 @@ def _plot_contours(res, out, name):
     fig.suptitle(f"Projected contours on a's end plane (along d_a, seen from above), {res.params['prism']} prism "
                  "— cf. paper Fig. 10", fontsize=11)
     fig.legend(list(seen.values()), list(seen.keys()), loc="outside lower center", ncol=5, fontsize=9)
-    return _save(fig, out, name)
+    return save_figure(fig, out, name)
 
 
 def _silhouette(points_world, s_axis, z_axis):
@@ -826,7 +747,7 @@ def _plot_trajectory(res, out, name):
     w /= np.linalg.norm(w)          # viewing axis, parallel with d_a x (x_d - x_0)
     z_ax = -da                      # up on the page
     s_ax = np.cross(z_ax, w)        # completes a right-handed screen frame (s, z) seen along w
-    fig = _figure(figsize=(7.5, 8.0), layout="constrained")
+    fig = new_figure(figsize=(7.5, 8.0), layout="constrained")
     ax = fig.add_subplot()
     depth = 3.0
     a_face = pa + g["xy_a"] @ Ra[:, :2].T
@@ -861,14 +782,14 @@ def _plot_trajectory(res, out, name):
     ax.set_title(f"Trajectory of b, {res.params['prism']} prism — cf. paper Fig. 11a\n"
                  f"seen along d_a × (x_d − x_0) ∥ ({w[0]:.3f}, {w[1]:.3f}, {w[2]:.3f})", fontsize=10)
     fig.legend(loc="outside lower center", ncol=3, fontsize=8.5)
-    return _save(fig, out, name)
+    return save_figure(fig, out, name)
 
 
 def _plot_states(res, out, name):
     p, t = res.params, res.t
     vel = p["plant"] == "velocity"
     unit = "µm/s" if vel else "µN"
-    fig = _figure(figsize=(9.0, 9.0), layout="constrained")
+    fig = new_figure(figsize=(9.0, 9.0), layout="constrained")
     axs = fig.subplots(4, 1, sharex=True, height_ratios=[3, 2.2, 2.2, 1.2])
     cols = ("tab:blue", "tab:orange", "tab:green")
     hk = np.flatnonzero(res.hit)
@@ -903,4 +824,4 @@ def _plot_states(res, out, name):
             ax.axvline(t[k], color="tab:red", lw=0.7, ls=":")
         ax.grid(alpha=0.3)
         ax.legend(loc="upper right", fontsize=8, ncol=4 if ax is not axs[0] else 4)
-    return _save(fig, out, name)
+    return save_figure(fig, out, name)

@@ -1,0 +1,156 @@
+"""Shared plumbing for everything that writes results: run metadata (package
+versions, CPU, threads), JSON and CSV files, progress bars and figures.
+
+One place for these so that the experiment, validation, timing study and
+``reproduce`` write files the same way. Optional dependencies (matplotlib,
+tqdm) are imported only here, only when used.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import platform
+import sys
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["package_versions", "cpu_name", "numba_threads", "run_metadata", "jsonable", "write_json",
+           "write_csv", "progress", "new_figure", "save_figure", "MPL_MISSING"]
+
+MPL_MISSING = "figures need matplotlib: pip install 'prismbatch[plot]'"
+
+
+def package_versions():
+    """Versions of prismbatch, Python and the packages results depend on (None if absent)."""
+    from importlib import metadata
+
+    from . import __version__
+
+    v = {"prismbatch": __version__, "python": platform.python_version()}
+    for name in ("numpy", "numba", "scipy", "python-fcl", "coal", "matplotlib", "dask", "distributed"):
+        try:
+            v[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            v[name] = None
+    return v
+
+
+def cpu_name():
+    """The CPU model as the OS reports it."""
+    try:
+        with open("/proc/cpuinfo") as f:
+            for line in f:
+                if line.startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
+def numba_threads():
+    """``numba.get_num_threads()`` (the threads a parallel kernel uses now)."""
+    import numba
+
+    return numba.get_num_threads()
+
+
+def run_metadata(**extra):
+    """A dict describing the run: versions, machine, threads, command line, plus ``extra``."""
+    meta = {"versions": package_versions(),
+            "machine": {"cpu": cpu_name(), "cpu_count": os.cpu_count(), "platform": platform.platform(),
+                        "numba_threads": numba_threads()},
+            "command": " ".join(sys.argv)}
+    meta.update(extra)
+    return meta
+
+
+def jsonable(x):
+    """``x`` with NumPy scalars/arrays turned into plain Python; non-finite floats become None."""
+    if isinstance(x, dict):
+        return {str(k): jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [jsonable(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return jsonable(x.tolist())
+    if isinstance(x, (bool, np.bool_)):
+        return bool(x)
+    if isinstance(x, np.integer):
+        return int(x)
+    if isinstance(x, (np.floating, float)):
+        return None if not math.isfinite(float(x)) else float(x)
+    return x
+
+
+def write_json(path, obj):
+    """Write ``jsonable(obj)`` to ``path`` (UTF-8, indented); returns the path as str."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "w", encoding="utf-8") as f:
+        json.dump(jsonable(obj), f, indent=2, ensure_ascii=False)
+        f.write("\n")
+    return str(path)
+
+
+def write_csv(path, header, rows):
+    """Write a CSV file with one header row; returns the path as str."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "w", newline="", encoding="utf-8") as f:
+        w = csv.writer(f)
+        w.writerow(list(header))
+        w.writerows(rows)
+    return str(path)
+
+
+class _NullBar:
+    def update(self, n=1):
+        pass
+
+    def set_description(self, desc=None):
+        pass
+
+    def close(self):
+        pass
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+def progress(total, *, enabled=True, unit="pair", desc=None):
+    """A tqdm progress bar on stderr when wanted and tqdm is installed, else a no-op with
+    the same ``update``/``set_description``/``close`` methods (also a context manager)."""
+    if enabled:
+        try:
+            from tqdm import tqdm
+        except ImportError:
+            return _NullBar()
+        return tqdm(total=total, unit=unit, unit_scale=True, leave=False, desc=desc, file=sys.stderr)
+    return _NullBar()
+
+
+def new_figure(**kw):
+    """A matplotlib ``Figure`` (no pyplot, no global backend change)."""
+    try:
+        from matplotlib.figure import Figure
+    except ImportError as exc:
+        raise ImportError(MPL_MISSING) from exc
+    return Figure(**kw)
+
+
+def save_figure(fig, out_dir, name):
+    """Save ``fig`` as ``name.png`` (150 dpi) and ``name.svg`` in ``out_dir``; returns both paths."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    files = []
+    for ext in ("png", "svg"):
+        p = str(out / f"{name}.{ext}")
+        fig.savefig(p, dpi=150 if ext == "png" else None)
+        files.append(p)
+    return files
