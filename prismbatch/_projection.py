@@ -57,6 +57,48 @@ CASES = {
         "(end-face part, cross-section and sweep) vs polygon",
 }
 
+# --- step-by-step trace (used by `prismbatch replay`; the batch kernels pass an
+# empty array and skip every write) ---
+TRACE_FIELDS = (
+    "tol", "p_x", "p_y", "p_z", "R00", "R01", "R02", "R10", "R11", "R12", "R20", "R21", "R22",
+    "exit", "i_top", "delta3", "lateral_offset", "axis_xy_length", "reach_T", "height_drift", "perpendicular",
+    "c_used", "height_tol", "near_top_vertices", "coarse_across", "coarse_along", "coarse_margin",
+    "coarse_facing_lhs", "coarse_facing_rhs", "top_vertex_depth_in_Pa", "i_bottom", "gjk_hit", "gjk_iterations",
+    "case", "hit",
+)
+TRACE_SIZE = len(TRACE_FIELDS)
+_T = {name: k for k, name in enumerate(TRACE_FIELDS)}
+T_TOL, T_P, T_R, T_EXIT = _T["tol"], _T["p_x"], _T["R00"], _T["exit"]
+T_ITOP, T_D3, T_PR, T_WN, T_REACH, T_DRIFT = (_T[k] for k in ("i_top", "delta3", "lateral_offset",
+                                                              "axis_xy_length", "reach_T", "height_drift"))
+T_PERP, T_CEFF, T_TZ, T_NTOP = _T["perpendicular"], _T["c_used"], _T["height_tol"], _T["near_top_vertices"]
+T_ACROSS, T_ALONG, T_MARGIN = _T["coarse_across"], _T["coarse_along"], _T["coarse_margin"]
+T_FACE_L, T_FACE_R, T_EARLY, T_IBOT = (_T["coarse_facing_lhs"], _T["coarse_facing_rhs"],
+                                       _T["top_vertex_depth_in_Pa"], _T["i_bottom"])
+T_GJK_HIT, T_GJK_IT, T_CASE, T_HIT = _T["gjk_hit"], _T["gjk_iterations"], _T["case"], _T["hit"]
+
+#: Where pair_test decided (trace field "exit").
+EXITS = {
+    1: "Δ3 < -tol and d_a.d_b <= 0: b's end face beyond a's plane and its body leaves it (no collision)",
+    2: "Δ3 < -tol and d_a.d_b <= 0 after the perpendicular snap (no collision)",
+    3: "the projection of b within reach of P_a is empty (no collision)",
+    4: "coarse test: b's projected axis passes P_a at more than R_a + R_b + tol (no collision)",
+    5: "coarse test: b's projection lies beyond P_a along the projected axis (no collision)",
+    6: "coarse test: facing axes, b's cross-section ends before reaching P_a (no collision)",
+    7: "coarse test: parallel axes, centres more than R_a + R_b + tol apart (no collision)",
+    8: "early accept: b's deepest end-face vertex projects inside P_a (collision)",
+    9: "2-D GJK: P_a and the projection of b are within tol (collision)",
+    10: "2-D GJK: P_a and the projection of b are more than tol apart (no collision)",
+}
+
+
+@njit(cache=True, inline="always")
+def _done(trace, exit_code, case, hit):
+    if trace.shape[0] > 0:
+        trace[T_EXIT] = exit_code
+        trace[T_CASE] = case
+        trace[T_HIT] = 1.0 if hit else 0.0
+
 
 @njit(cache=True, inline="always")
 def _near_top_count(bvx, bvy, sb, nb, hx, hy, imax, zmax_h, tol):
@@ -75,12 +117,15 @@ def _near_top_count(bvx, bvy, sb, nb, hx, hy, imax, zmax_h, tol):
 @njit(cache=True)
 def pair_test(avx, avy, aeang, aetab, avang, ainv, sa, na, ra,
               bvx, bvy, beang, betab, sb, nb, rb,
-              px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22, tol):
+              px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22, tol, trace):
     """Collision test for one pair in a's centred frame.
 
     Returns (hit, case, cx, cy, cz): the case number and, on a hit, a contact
-    point (a's centred frame) lying within tol of both bodies.
+    point (a's centred frame) lying within tol of both bodies. ``trace`` is an
+    empty array (no tracing) or a float array of TRACE_SIZE that receives the
+    intermediate quantities (fields TRACE_FIELDS, exit codes EXITS).
     """
+    tr = trace.shape[0] > 0
     nan = math.nan
     hx = r20
     hy = r21
@@ -90,7 +135,11 @@ def pair_test(avx, avy, aeang, aetab, avang, ainv, sa, na, ra,
     top_v = bvy[sb + imax]
     top_h = hx * top_u + hy * top_v
     d3 = pz + top_h  # the paper's Δ3
+    if tr:
+        trace[T_ITOP] = imax
+        trace[T_D3] = d3
     if d3 < -tol and c <= 0.0:
+        _done(trace, 1, CASE_ABOVE, False)
         return False, CASE_ABOVE, nan, nan, nan  # the common case: leave at once
     pr = math.hypot(px, py)
     wn = math.hypot(r02, r12)
@@ -102,10 +151,19 @@ def pair_test(avx, avy, aeang, aetab, avang, ainv, sa, na, ra,
     perp = drift <= 0.25 * tol
     ceff = 0.0 if perp else c
     tz = tol + drift if perp else tol
+    if tr:
+        trace[T_PR] = pr
+        trace[T_WN] = wn
+        trace[T_REACH] = T
+        trace[T_DRIFT] = drift
+        trace[T_PERP] = 1.0 if perp else 0.0
+        trace[T_CEFF] = ceff
+        trace[T_TZ] = tz
 
     # --- classification (labels; the decision below is one exact path) ---
     if d3 < -tol:
         if ceff <= 0.0:
+            _done(trace, 2, CASE_ABOVE, False)
             return False, CASE_ABOVE, nan, nan, nan
         case = CASE_RETURN
     elif d3 <= tol:
@@ -113,6 +171,8 @@ def pair_test(avx, avy, aeang, aetab, avang, ainv, sa, na, ra,
             case = CASE_RETURN
         else:
             k = _near_top_count(bvx, bvy, sb, nb, hx, hy, imax, top_h, tol)
+            if tr:
+                trace[T_NTOP] = k
             if perp:
                 case = CASE_PERP_VERTEX if k == 1 else CASE_PERP_EDGE
             else:
@@ -127,33 +187,60 @@ def pair_test(avx, avy, aeang, aetab, avang, ainv, sa, na, ra,
 
     # Empty projection within reach (e.g. b's body re-enters beyond a).
     if d3 + max(ceff, 0.0) * T < -tz:
+        _done(trace, 3, case, False)
         return False, case, nan, nan, nan
 
     # --- coarse rejection (the paper's Δ4, rewritten without sec²α) ---
     margin = ra + rb + tol
+    coarse = CASE_COARSE if case == CASE_POLYGON else case
     if wn > 0.0:
         ux = r02 / wn
         uy = r12 / wn
         along = ux * px + uy * py
-        if abs(ux * py - uy * px) > margin or along > margin:
-            return False, (CASE_COARSE if case == CASE_POLYGON else case), nan, nan, nan
+        across = abs(ux * py - uy * px)
+        if tr:
+            trace[T_ACROSS] = across
+            trace[T_ALONG] = along
+            trace[T_MARGIN] = margin
+        if across > margin or along > margin:
+            _done(trace, 4 if across > margin else 5, coarse, False)
+            return False, coarse, nan, nan, nan
         # Facing axes: the cross-section ends at t <= (Δ3 + tol) / |c|.
-        if ceff < 0.0 and abs(c) * (-along - margin) > wn * (d3 + tz):
-            return False, (CASE_COARSE if case == CASE_POLYGON else case), nan, nan, nan
+        if ceff < 0.0:
+            lhs = abs(c) * (-along - margin)
+            rhs = wn * (d3 + tz)
+            if tr:
+                trace[T_FACE_L] = lhs
+                trace[T_FACE_R] = rhs
+            if lhs > rhs:
+                _done(trace, 6, coarse, False)
+                return False, coarse, nan, nan, nan
     elif pr > margin:
-        return False, (CASE_COARSE if case == CASE_POLYGON else case), nan, nan, nan
+        if tr:
+            trace[T_MARGIN] = margin
+        _done(trace, 7, coarse, False)
+        return False, coarse, nan, nan, nan
 
     # --- early accept: b's deepest end-face vertex projects inside P_a ---
     if d3 >= -tz:
         ex = px + r00 * top_u + r01 * top_v
         ey = py + r10 * top_u + r11 * top_v
-        if point_polygon_distance(avx, avy, avang, ainv, sa, na, ex, ey) >= 0.0:
+        depth = point_polygon_distance(avx, avy, avang, ainv, sa, na, ex, ey)
+        if tr:
+            trace[T_EARLY] = depth
+        if depth >= 0.0:
+            _done(trace, 8, case, True)
             return True, case, ex, ey, 0.5 * (d3 + max(d3, 0.0))
 
     # --- exact planar test: GJK of P_a against the projection of b ---
     imin = extreme_vertex(bvx, bvy, beang, betab, sb, nb, -hx, -hy)
     sp = (px, py, r00, r01, r10, r11, r02, r12, hx, hy, pz, ceff, T, tz, float(imin), float(imax))
-    hit, _, ax, ay, u, v, t = gjk(avx, avy, aeang, aetab, sa, na, bvx, bvy, beang, betab, sb, nb, sp, tol)
+    hit, iters, ax, ay, u, v, t = gjk(avx, avy, aeang, aetab, sa, na, bvx, bvy, beang, betab, sb, nb, sp, tol)
+    if tr:
+        trace[T_IBOT] = imin
+        trace[T_GJK_HIT] = 1.0 if hit else 0.0
+        trace[T_GJK_IT] = iters
+    _done(trace, 9 if hit else 10, case, hit)
     if not hit:
         return False, case, nan, nan, nan
     bx = px + r00 * u + r01 * v + r02 * t

@@ -149,6 +149,37 @@ class Collider:
             raise ValueError(PAIR_PROBLEMS[problem].format(val))
         return PairResult(bool(hit), int(case), np.array([cx, cy, cz]))
 
+    def explain(self, pos_a, rot_a, pos_b, rot_b):
+        """Step-by-step record of how one pose pair is decided (for ``prismbatch replay``).
+
+        Runs the same compiled test as :meth:`collide_pair` with tracing on.
+
+        Returns
+        -------
+        dict
+            Every field of ``prismbatch._projection.TRACE_FIELDS`` (a's centred
+            frame: b's position ``p`` and rotation ``R``, the tolerance, Δ3,
+            the reach, the coarse-test quantities, the early-accept depth, the
+            GJK outcome, ...; NaN where the test never got there), plus
+            ``exit_reason`` (text), ``hit``, ``case`` and ``contact`` (world).
+        """
+        from ._projection import EXITS, TRACE_FIELDS, TRACE_SIZE
+
+        if self._a_per or self._b_per:
+            raise TypeError("explain needs single Prism shapes, not PrismSets")
+        self.collide_pair(pos_a, rot_a, pos_b, rot_b)  # the same input checks
+        f = self._pair_array
+        Pa, Ra, Pb, Rb = f(pos_a, (3,), "pos_a"), f(rot_a, (3, 3), "rot_a"), f(pos_b, (3,), "pos_b"), f(rot_b, (3, 3), "rot_b")
+        trace = np.full(TRACE_SIZE, np.nan)
+        a, b = self._a, self._b
+        hit, case, cx, cy, cz = _batch.pair_world(*a, 0, *b[:4], *b[6:], 0, Pa, Ra, Pb, Rb,
+                                                  self.rtol, self.atol, self._eps, trace)
+        out = {name: float(v) for name, v in zip(TRACE_FIELDS, trace)}
+        out["exit"] = int(trace[TRACE_FIELDS.index("exit")])
+        out["exit_reason"] = EXITS[out["exit"]]
+        out.update(hit=bool(hit), case=int(case), contact=[float(cx), float(cy), float(cz)])
+        return out
+
     def _is_single_pair(self, pos_a, rot_a, pos_b, rot_b, quat_order):
         if self._a_per or self._b_per or quat_order is not None:
             return False
