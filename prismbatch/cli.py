@@ -51,6 +51,77 @@ def _experiment(args):
     return 0
 
 
+def _int_list(text):
+    """Parse '36,180,360' -> (36, 180, 360) for argparse."""
+    try:
+        vals = tuple(int(v) for v in text.split(",") if v.strip())
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated integers, got {text!r}") from None
+    if not vals:
+        raise argparse.ArgumentTypeError("expected at least one integer")
+    return vals
+
+
+def _name_list(text):
+    return tuple(v.strip() for v in text.split(",") if v.strip())
+
+
+def _print_paths(paths):
+    for key, v in paths.items():
+        for f in (v if isinstance(v, (list, tuple)) else [v]):
+            print(f"wrote {f}")
+
+
+def _study(args):
+    from .study import format_study, run_study, write_study
+
+    res = run_study(vertices=args.vertices, cases=args.cases or tuple(range(1, 12)), poses_per_case=args.poses,
+                    repeats=args.repeats, batch_pairs=args.batch_pairs, peers=args.peers, seed=args.seed,
+                    quick=args.quick, progress=_show_progress(args), lp_checks=args.lp_checks,
+                    table_vertices=args.table_vertices)
+    for line in format_study(res):
+        print(line)
+    if args.out is not None:
+        _print_paths(write_study(res, args.out, figures=not args.no_figures))
+    return 0
+
+
+def _validate(args):
+    from .validate import format_validation, validate, write_validation
+
+    if args.fcl_fraction is not None and not args.fcl:
+        raise ValueError("--fcl-fraction and --no-fcl contradict each other")
+    stiff = "quick" if args.stiff_quick else bool(args.stiff)
+    shapes = args.shapes[0] if len(args.shapes) == 1 else args.shapes
+    res = validate(args.pairs, distributions=args.distributions, shapes=shapes, vertices=args.vertices,
+                   seed=args.seed, chunk_size=args.chunk_size, dtype=args.dtype, rtol=args.rtol, atol=args.atol,
+                   fcl=args.fcl_fraction if args.fcl_fraction is not None else args.fcl, lp_samples=args.lp_samples,
+                   contact_check=not args.no_contact_check, max_band_records=args.max_band_records, stiff=stiff,
+                   scheduler=args.scheduler, workers=args.workers, progress=_show_progress(args))
+    for line in format_validation(res):
+        print(line)
+    if args.out is not None:
+        _print_paths(write_validation(res, args.out))
+    else:
+        print("(no files written: pass --out DIR for the report, CSV tables, JSON metadata and the replay file)")
+    return 0 if res.ok else 1
+
+
+def _show_progress(args):
+    return not args.no_progress and sys.stderr.isatty()
+
+
+def _replay(args):
+    from .replay import replay
+
+    try:
+        replay(args.file, indices=args.record)
+    except OSError as exc:
+        print(f"prismbatch: error: cannot read {args.file}: {exc.strerror or exc}", file=sys.stderr)
+        return 2
+    return 0
+
+
 def build_parser():
     """The argument parser (exposed for documentation and tests)."""
     p = argparse.ArgumentParser(
@@ -97,6 +168,81 @@ def build_parser():
     e.add_argument("--no-figures", action="store_true", help="with --out: skip the figures (no matplotlib needed)")
     e.add_argument("--no-fcl", action="store_true", help="skip the python-fcl timing")
     e.set_defaults(func=_experiment)
+    v = sub.add_parser("validate", help="Monte Carlo validation against python-fcl and an exact LP, per case",
+                       description="Draw N pose pairs per distribution, run prismbatch, python-fcl on finite "
+                                   "stand-ins and an exact LP (signed margin) on a subsample plus every disagreement, "
+                                   "and report per case: confusion matrices, disagreements inside and outside the "
+                                   "touching band, contact validity, NaN/inf and timings. Every disagreement goes to a "
+                                   "replay file ('prismbatch replay FILE'). Exit status 1 if any disagreement lies "
+                                   "outside the band, a contact is invalid or an output is non-finite.")
+    v.add_argument("--pairs", type=int, default=100_000, metavar="N", help="pairs per distribution (default: 100,000)")
+    v.add_argument("--distributions", type=_name_list, default=("facing", "free", "near-contact", "degenerate"),
+                   metavar="NAME,...", help="facing, free, near-contact, degenerate (default: all four)")
+    v.add_argument("--shapes", type=_name_list, default=("regular",), metavar="KIND,...",
+                   help="regular, random (convex polygons), cylinder (n-gon fits); several are cycled per block "
+                        "(default: regular)")
+    v.add_argument("--vertices", type=_int_list, default=(36, 360), metavar="N,N,...",
+                   help="vertex counts, cycled per block (default: 36,360)")
+    v.add_argument("--seed", type=int, default=0, help="random seed; results do not depend on chunking or workers "
+                                                      "(default: 0)")
+    v.add_argument("--chunk-size", type=int, default=50_000, metavar="N",
+                   help="pairs per task: bounds memory (default: 50,000)")
+    v.add_argument("--dtype", choices=["float64", "float32"], default="float64", help="precision (default: float64)")
+    v.add_argument("--rtol", type=float, default=None, help="relative tolerance (default: 1e-9 f64, 1e-5 f32)")
+    v.add_argument("--atol", type=float, default=0.0, help="absolute tolerance (default: 0)")
+    v.add_argument("--no-fcl", dest="fcl", action="store_false", help="skip python-fcl")
+    v.add_argument("--fcl-fraction", type=float, default=None, metavar="F",
+                   help="run python-fcl on this random fraction of the pairs (default: all)")
+    v.add_argument("--lp-samples", type=int, default=2000, metavar="N",
+                   help="random pairs per distribution checked by the exact LP (default: 2000)")
+    v.add_argument("--no-contact-check", action="store_true", help="do not check contact points")
+    v.add_argument("--max-band-records", type=int, default=1000, metavar="N",
+                   help="keep at most N 'inside band' records in the replay file (all are counted; default: 1000)")
+    g = v.add_mutually_exclusive_group()
+    g.add_argument("--stiff", action="store_true", help="also run the stiff and extreme suite (a few minutes)")
+    g.add_argument("--stiff-quick", action="store_true", help="also run a reduced stiff suite (about 20 s)")
+    v.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="send chunks to this Dask scheduler (needs prismbatch[dask])")
+    v.add_argument("--workers", type=int, default=None, metavar="K",
+                   help="start a local Dask cluster of K worker processes (when no --scheduler)")
+    v.add_argument("--out", default=None, metavar="DIR",
+                   help="write validation.md, CSV tables, validation.json and validation_replay.json to DIR")
+    v.add_argument("--no-progress", action="store_true", help="no progress bar")
+    v.set_defaults(func=_validate)
+    st = sub.add_parser("study", help="timing study against python-fcl and coal: Table I, Fig. 7, throughput",
+                        description="Time prismbatch against python-fcl (and coal, when installed) on the same "
+                                    "case-targeted pose pairs: per-case single-query latency at every vertex count "
+                                    "(Table I at 3600 vertices, Fig. 7a-c with fitted growth per 1000 vertices), batch "
+                                    "throughput on one and all threads, compile time apart. Medians of repeats after a "
+                                    "warm-up. Run it on an idle machine.")
+    st.add_argument("--quick", action="store_true",
+                    help="n = 36, 360, 1800, 3600; 100 poses per case; 3 repeats (about a minute)")
+    st.add_argument("--vertices", type=_int_list, default=None, metavar="N,N,...",
+                    help="vertex counts (default: 36,180,360,1800,3600,7200)")
+    st.add_argument("--cases", type=_int_list, default=None, metavar="C,C,...", help="cases (default: 1-11)")
+    st.add_argument("--poses", type=int, default=None, metavar="N", help="poses per case (default: 300)")
+    st.add_argument("--repeats", type=int, default=None, metavar="R", help="timed repeats (default: 5)")
+    st.add_argument("--batch-pairs", type=int, default=None, metavar="N",
+                    help="pairs per batch-throughput call (default: 100,000)")
+    st.add_argument("--peers", type=_name_list, default=("fcl", "coal"), metavar="NAME,...",
+                    help="peers to time: fcl, coal (default: fcl,coal; coal is skipped with a note if missing)")
+    st.add_argument("--table-vertices", type=int, default=3600, metavar="N",
+                    help="vertex count of Table I (default: 3600)")
+    st.add_argument("--lp-checks", type=int, default=10, metavar="K",
+                    help="disagreements per cell arbitrated by the exact LP (default: 10)")
+    st.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
+    st.add_argument("--out", default=None, metavar="DIR", help="write CSV, JSON, Markdown and figures to DIR")
+    st.add_argument("--no-figures", action="store_true", help="with --out: skip the figures")
+    st.add_argument("--no-progress", action="store_true", help="no progress bar")
+    st.set_defaults(func=_study)
+    r = sub.add_parser("replay", help="re-run saved pose pairs and print how each is decided, step by step",
+                       description="Re-run the pose pairs of a replay file (e.g. validation_replay.json written by "
+                                   "'prismbatch validate') and print, for each, b's pose in a's frame, the case "
+                                   "classification, every test on the way and where the decision was made.")
+    r.add_argument("file", help="replay file (JSON)")
+    r.add_argument("--record", type=int, action="append", default=None, metavar="I",
+                   help="only record I (0-based; repeat for several)")
+    r.set_defaults(func=_replay)
     return p
 
 

@@ -3,7 +3,8 @@
 General-purpose collision libraries have no semi-infinite prism, so each
 prism is stood in for by a FINITE convex extrusion of its polygon from the
 end face (local z = 0) to local z = L along +z; see ``fcl_standin_length``
-for the rule used to pick L.
+for the old rule (kept for the benchmarks) and ``standin_lengths`` for the
+sound per-pair rule used by :func:`prismbatch.validate`.
 
 The optional dependencies are imported lazily inside the functions, so
 importing this module never requires them.
@@ -11,10 +12,14 @@ importing this module never requires them.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 __all__ = [
     "fcl_standin_length",
+    "standin_lengths",
+    "StandinLengths",
     "fcl_prism",
     "coal_prism",
     "FCLPeer",
@@ -70,11 +75,109 @@ def fcl_standin_length(xy_a, xy_b, pos_a, pos_b) -> float:
     lies within that distance of the end faces, the far caps cannot matter.
     It is NOT a guarantee for every pose: two nearly parallel axes that
     converge slowly can first meet arbitrarily far from both end faces, and
-    then the truncated stand-ins report "no collision".
+    then the truncated stand-ins report "no collision". :func:`standin_lengths`
+    gives a per-pair length with a proof that the status cannot change.
     """
     pa = np.asarray(pos_a, dtype=float).reshape(3)
     pb = np.asarray(pos_b, dtype=float).reshape(3)
     return 4.0 * (float(np.linalg.norm(pa - pb)) + _max_radius(xy_a) + _max_radius(xy_b))
+
+
+class StandinLengths(NamedTuple):
+    """Result of :func:`standin_lengths` (all arrays of shape (N,))."""
+
+    length: np.ndarray
+    bound: np.ndarray
+    sound: np.ndarray
+
+
+def _centre_radius(xy):
+    """Area centroid of a convex polygon and the largest vertex distance from it."""
+    poly = np.asarray(xy, dtype=float).reshape(-1, 2)
+    x0 = poly.mean(axis=0)
+    v = poly - x0
+    vn = np.roll(v, -1, axis=0)
+    cr = v[:, 0] * vn[:, 1] - vn[:, 0] * v[:, 1]
+    area2 = cr.sum()
+    if area2 == 0.0:
+        raise ValueError("polygon has zero area")
+    c = np.array([((v[:, 0] + vn[:, 0]) * cr).sum(), ((v[:, 1] + vn[:, 1]) * cr).sum()]) / (3.0 * area2) + x0
+    return c, float(np.max(np.hypot(*(poly - c).T)))
+
+
+def standin_lengths(xy_a, xy_b, pos_a, rot_a, pos_b, rot_b, *, factor=2.0, max_ratio=1e6):
+    """Per-pair stand-in length L that provably cannot change the collision status.
+
+    Rule (``S = |c_b - c_a| + R_a + R_b``: world end-face centroids, radii
+    about them; ``d = R[:, 2]`` the axes; ``c = d_a . d_b``)::
+
+        bound = S                               if c <= 0 or d_a == d_b exactly
+              = S / sqrt(1 - c)                 otherwise
+                (computed as sqrt(2) S / |d_a - d_b|, accurate for small angles)
+        L     = factor * bound                  (factor 2 by default)
+
+    Why: a common point ``x = x_a + s d_a = x_b + t d_b`` (``x_a, x_b`` in the
+    end faces, ``s, t >= 0``: the depths along each axis) gives
+    ``s d_a - t d_b = x_b - x_a``, of length at most S, while
+    ``|s d_a - t d_b|^2 = s^2 + t^2 - 2 s t c`` is at least ``max(s, t)^2``
+    when ``c <= 0`` and at least ``(1 - c) (s^2 + t^2)`` when ``c > 0``.
+    So EVERY common point lies within ``bound`` of both end faces, and
+    truncating both prisms at ``L >= bound`` leaves the intersection, hence the
+    status, unchanged (a separated pair stays separated: the stand-ins are
+    subsets). With ``factor >= 2`` the far cap is also at least ``bound >= S``
+    away from the whole intersection, so the LP margin of the stand-ins equals
+    the semi-infinite one whenever the bodies meet. For exactly parallel axes
+    pointing the same way the intersection is unbounded, but sliding a common
+    point back along the shared axis gives one with ``max(s, t) <= S``.
+    Facing axes (``c <= 0``) need no more than ``S``; nearly parallel axes
+    pointing the same way need about ``1.4 S / angle`` (they can first meet
+    that far out), which the old rule (:func:`fcl_standin_length`) misses.
+
+    Parameters
+    ----------
+    xy_a, xy_b : array_like, shape (n, 2)
+        End-face polygons (local frames).
+    pos_a, pos_b : array_like, shape (3,) or (N, 3)
+        Positions of the local origins.
+    rot_a, rot_b : array_like, shape (3, 3) or (N, 3, 3)
+        Rotations (columns: local axes in world coordinates).
+    factor : float, optional
+        Safety factor >= 1 applied to the bound (default 2, see above).
+    max_ratio : float, optional
+        Lengths are capped at ``factor * max_ratio * S``; capped pairs are
+        flagged ``sound = False`` (axes within about ``1.4 / max_ratio`` rad of
+        parallel, same direction: finite stand-ins that long are numerically
+        useless anyway).
+
+    Returns
+    -------
+    StandinLengths
+        ``length`` (N,) the lengths L to use, ``bound`` (N,) the uncapped
+        bound (inf for caps), ``sound`` (N,) bool: ``length >= bound``.
+    """
+    factor = float(factor)
+    max_ratio = float(max_ratio)
+    if not (np.isfinite(factor) and factor >= 1.0):
+        raise ValueError(f"factor must be a finite number >= 1, got {factor}")
+    if not (np.isfinite(max_ratio) and max_ratio >= 1.0):
+        raise ValueError(f"max_ratio must be a finite number >= 1, got {max_ratio}")
+    N, pa, ra, pb, rb = _batch_poses(pos_a, rot_a, pos_b, rot_b)
+    ca2, Ra = _centre_radius(xy_a)
+    cb2, Rb = _centre_radius(xy_b)
+    ca = pa + ra[:, :, :2] @ ca2
+    cb = pb + rb[:, :, :2] @ cb2
+    S = np.linalg.norm(cb - ca, axis=1) + Ra + Rb
+    da, db = ra[:, :, 2], rb[:, :, 2]
+    c = np.einsum("ij,ij->i", da, db)
+    diff = np.linalg.norm(da - db, axis=1)
+    with np.errstate(divide="ignore"):
+        inv = np.where(c > 0.0, np.sqrt(2.0) / diff, 1.0)
+    inv = np.where(diff == 0.0, 1.0, inv)  # exactly parallel, same direction
+    bound = S * inv
+    cap = max_ratio * S
+    sound = bound <= cap
+    length = factor * np.minimum(bound, cap)
+    return StandinLengths(length, bound, sound)
 
 
 def _prism_mesh(xy, length):

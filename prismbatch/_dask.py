@@ -1,0 +1,119 @@
+"""Dask execution of :func:`prismbatch.validate` chunks (optional extra ``[dask]``).
+
+Chunks travel as ``(config, distribution, first block, number of blocks)``:
+workers regenerate their pairs from the seed, so no arrays are shipped and
+the merged results equal the in-process run's. Dask is imported only here.
+"""
+
+from __future__ import annotations
+
+import os
+
+__all__ = ["run_chunks", "DASK_MISSING"]
+
+DASK_MISSING = "running on Dask needs dask.distributed: pip install 'prismbatch[dask]'"
+
+
+def _import_distributed():
+    try:
+        import distributed  # noqa: PLC0415
+    except ImportError as exc:
+        raise ImportError(DASK_MISSING) from exc
+    return distributed
+
+
+def _host_cpus():
+    import socket
+
+    return socket.gethostname(), os.cpu_count() or 1
+
+
+def _warm_worker(dtype):
+    """Load (or compile) the kernels in a worker before any chunk runs there."""
+    from .validate import _warm
+
+    return _warm(dtype)
+
+
+def _set_threads(k):
+    import numba
+
+    numba.set_num_threads(max(1, min(int(k), numba.config.NUMBA_NUM_THREADS)))
+    return numba.get_num_threads()
+
+
+def run_chunks(config, specs, done, *, scheduler=None, workers=None):
+    """Run validation chunks on a Dask cluster and hand each result to ``done``.
+
+    Parameters
+    ----------
+    config : dict
+        Validation settings (:func:`prismbatch.validate.make_config`).
+    specs : list of tuple
+        ``(distribution, first_block, n_blocks)`` per chunk.
+    done : callable
+        ``done(spec, chunk_result)``, called in the client as chunks finish
+        (any order; the caller merges in block order).
+    scheduler : str, optional
+        Address of an existing scheduler (``Client(address)``).
+    workers : int, optional
+        Without ``scheduler``: start ``LocalCluster(n_workers=workers,
+        threads_per_worker=1, processes=True)`` and close it afterwards.
+
+    Returns
+    -------
+    dict
+        How the run was executed: scheduler, number of workers, Numba
+        threads per task, and each worker's kernel warm-up seconds.
+
+    Notes
+    -----
+    The caller warms the Numba cache in-process first; each worker then loads
+    the kernels (``client.run``) before chunks are submitted. Every worker's
+    Numba thread count is set to ``max(1, cpus of its host // worker threads
+    on that host)``, so workers do not oversubscribe cores; the count is also
+    passed to each chunk task, because ``numba.set_num_threads`` applies to
+    the calling thread only.
+    """
+    if scheduler is None and workers is None:
+        raise ValueError("run_chunks needs a scheduler address or a number of workers")
+    distributed = _import_distributed()
+    import logging
+
+    from .validate import run_chunk
+
+    cluster = None
+    if scheduler is not None:
+        client = distributed.Client(scheduler)
+    else:
+        cluster = distributed.LocalCluster(n_workers=int(workers), threads_per_worker=1, processes=True,
+                                           dashboard_address=None, silence_logs=logging.ERROR)
+        client = distributed.Client(cluster)
+    try:
+        if scheduler is not None:
+            client.wait_for_workers(1)
+        info = client.scheduler_info()["workers"]
+        hosts = client.run(_host_cpus)
+        busy = {}
+        for addr, (host, _) in hosts.items():
+            busy[host] = busy.get(host, 0) + int(info[addr].get("nthreads", 1))
+        per_worker = {addr: max(1, cpus // busy[host]) for addr, (host, cpus) in hosts.items()}
+        for addr, k in per_worker.items():
+            client.run(_set_threads, k, workers=[addr])
+        warm = client.run(_warm_worker, config["dtype"])
+        threads = min(per_worker.values())
+        futures = {}
+        for spec in specs:
+            d, first, n = spec
+            fut = client.submit(run_chunk, config, d, first, n, threads, pure=False,
+                                key=f"prismbatch-validate-{d}-{first}-{n}-{os.getpid()}-{id(specs)}")
+            futures[fut] = spec
+        for fut in distributed.as_completed(list(futures)):
+            done(futures[fut], fut.result())
+        return {"scheduler": scheduler if scheduler is not None else "dask LocalCluster",
+                "workers": len(hosts), "numba_threads": threads,
+                "worker_warmup_s": {str(a): float(s) for a, s in warm.items()}}
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
