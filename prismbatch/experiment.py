@@ -632,15 +632,18 @@ def _markdown(res, figure_files):
 def write_experiment(res, out_dir, *, figures=True):
     """Write the run to ``out_dir``: CSV, JSON, Markdown and (optionally) figures.
 
-    Returns a dict of the written paths: ``csv``, ``json``, ``markdown`` and
+    Returns a dict of the written paths: ``csv`` (trajectory), ``contours_csv``
+    (the Fig. 10 curves), ``json``, ``markdown`` and
     ``figures`` (list; PNG and SVG of each figure).
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     stem = f"experiment_{res.params['prism']}"
-    paths = {"csv": str(out / f"{stem}_trajectory.csv"), "json": str(out / f"{stem}.json"),
+    paths = {"csv": str(out / f"{stem}_trajectory.csv"), "contours_csv": str(out / f"{stem}_fig10_contours.csv"),
+             "json": str(out / f"{stem}.json"),
              "markdown": str(out / f"{stem}.md"), "figures": []}
     write_csv(paths["csv"], *_csv_rows(res))
+    write_csv(paths["contours_csv"], *_contour_csv_rows(res))
     if figures:
         paths["figures"] = plot_experiment(res, out, stem=stem)
     meta = run_metadata(description="prismbatch simulation of the paper's Sec. VI-B experiment",
@@ -671,51 +674,81 @@ def _closed(P):
     return np.vstack([P, P[:1]])
 
 
-def _plot_contours(res, out, name):
+def contour_panels(res):
+    """The Fig. 10 panels as data, in a's end plane (world x, y for the paper's a), mm.
+
+    Returns ``(panels, poly_a)``: ``poly_a`` is a's end face (n, 2); each panel
+    is a dict with ``t``, ``k`` (sample), ``label`` (None or "first contact"),
+    ``case``, ``hit``, ``end_face`` (b's end face projected), ``projection``
+    (b ∩ a's half-space projected; empty when there is none), ``centre``
+    (b's end-face centre) and ``contact`` (None or a point).
+    """
     g, s = res.geometry, res.summary
     dt = res.params["dt_s"]
     times = [tt for tt in FIG10_TIMES if int(round(tt / dt)) < len(res.t)]
-    panels = [(tt, int(round(tt / dt)), None) for tt in times]
+    marks = [(tt, int(round(tt / dt)), None) for tt in times]
     if s["first_collision_s"] is not None:
         k = int(round(s["first_collision_s"] / dt))
-        panels.append((res.t[k], k, "first contact"))
+        marks.append((res.t[k], k, "first contact"))
+    Ra, pa = g["rot_a"], g["pos_a"]
+    # the plane basis of projected_contour: e1 = R_a[:, 0], e2 = e1 x d_a; for the paper's a these are world x, y
+    e1, e2 = Ra[:, 0], np.cross(Ra[:, 0], Ra[:, 2])
+    plane = lambda P: np.column_stack([P @ e1, P @ e2])  # noqa: E731
+    poly_a = plane(g["xy_a"] @ Ra[:, :2].T)
+    panels = []
+    for tt, k, label in marks:
+        Q = projected_contour(g["xy_b"], res.dc[k] + pa, g["rot_b"], pa, Ra)
+        panels.append(dict(t=float(tt), k=k, label=label, case=int(res.case[k]), hit=bool(res.hit[k]),
+                           end_face=plane(g["xy_b"] @ g["rot_b"][:, :2].T + res.dc[k]),
+                           projection=np.asarray(Q).reshape(-1, 2), centre=plane(res.dc[k][None])[0],
+                           contact=plane((res.contact[k] - pa)[None])[0] if res.hit[k] else None))
+    return panels, poly_a
+
+
+def _contour_csv_rows(res):
+    """Fig. 10's curves as CSV rows (µm), so the figure can be redrawn from files."""
+    panels, poly_a = contour_panels(res)
+    header = ["panel", "t_s", "label", "case", "hit", "curve", "vertex", "x_um", "y_um"]
+    rows = []
+    for i, P in enumerate(panels):
+        curves = [("a_end_face", poly_a), ("b_end_face_projected", P["end_face"]),
+                  ("b_projection", P["projection"]), ("b_centre", P["centre"][None])]
+        if P["contact"] is not None:
+            curves.append(("contact", P["contact"][None]))
+        for name, pts in curves:
+            for j, (x, y) in enumerate(pts):
+                rows.append([i, f"{P['t']:.4f}", P["label"] or "", P["case"], int(P["hit"]), name, j,
+                             f"{1e3 * x:.4f}", f"{1e3 * y:.4f}"])
+    return header, rows
+
+
+def _plot_contours(res, out, name):
+    panels, poly_a = contour_panels(res)
     ncol = 3
     nrow = -(-len(panels) // ncol)
     fig = new_figure(figsize=(10.5, 3.35 * nrow + 0.6), layout="constrained")
     axes = fig.subplots(nrow, ncol, squeeze=False)
-    Ra, pa = g["rot_a"], g["pos_a"]
-    # the plane basis of projected_contour: e1 = R_a[:, 0], e2 = e1 x d_a; for the paper's a these are world x, y
-    e1, e2 = Ra[:, 0], np.cross(Ra[:, 0], Ra[:, 2])
-    poly_a = np.column_stack([(g["xy_a"] @ Ra[:, :2].T) @ e1, (g["xy_a"] @ Ra[:, :2].T) @ e2])
-    faces = {}
-    for _, k, _ in panels:
-        endface = g["xy_b"] @ g["rot_b"][:, :2].T + res.dc[k]
-        faces[k] = np.column_stack([endface @ e1, endface @ e2])
-    allpts = np.vstack([poly_a, *faces.values()])
+    allpts = np.vstack([poly_a, *(P["end_face"] for P in panels)])
     lo, hi = allpts.min(axis=0) - 0.3, allpts.max(axis=0) + 0.3
-    for i, (tt, k, label) in enumerate(panels):
+    for i, P in enumerate(panels):
         ax = axes[i // ncol][i % ncol]
-        pb_ = res.dc[k] + pa
-        Q = projected_contour(g["xy_b"], pb_, g["rot_b"], pa, Ra)
-        ef = faces[k]
+        Q, ef, c = P["projection"], P["end_face"], P["centre"]
         ax.fill(*_closed(poly_a).T, color="tab:red", alpha=0.15, lw=0)
         ax.plot(*_closed(poly_a).T, color="tab:red", lw=1.5, label="a's end face")
         ax.plot(*_closed(ef).T, color="0.45", lw=1.0, ls=":", label="b's end face, projected")
         if len(Q) >= 3:
             ax.fill(*_closed(Q).T, color="tab:blue", alpha=0.25, lw=0)
             ax.plot(*_closed(Q).T, color="tab:blue", lw=1.5, label="b ∩ a's half-space, projected")
-        c = np.array([res.dc[k] @ e1, res.dc[k] @ e2])
         ax.plot([0], [0], "+", color="tab:red", ms=8, label="end-face centres")
         ax.plot([c[0]], [c[1]], "+", color="tab:blue", ms=8)
-        if res.hit[k]:
-            q = res.contact[k] - pa
-            ax.plot([q @ e1], [q @ e2], "x", color="black", ms=8, mew=2, label="contact point")
-        hit = ", collision" if res.hit[k] else ""
-        title = (f"t = {tt:g} s: case {res.case[k]}{hit}" if label is None
-                 else f"{label}, t = {tt:.2f} s: case {res.case[k]}{hit}")
+        if P["hit"]:
+            ax.plot([P["contact"][0]], [P["contact"][1]], "x", color="black", ms=8, mew=2, label="contact point")
+        hit = ", collision" if P["hit"] else ""
+        title = (f"t = {P['t']:g} s: case {P['case']}{hit}" if P["label"] is None
+                 else f"{P['label']}, t = {P['t']:.2f} s: case {P['case']}{hit}")
         if not len(Q):
             title += " (no projection)"
-        ax.set_title(title, fontsize=10, color="tab:red" if res.hit[k] else "black")
+        ax.set_title(title, fontsize=10, color="tab:red" if P["hit"] else "black")
         ax.set_xlim(lo[0], hi[0])
         ax.set_ylim(lo[1], hi[1])
         ax.set_aspect("equal")
