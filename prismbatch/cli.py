@@ -107,6 +107,27 @@ def _validate(args):
     return 0 if res.ok else 1
 
 
+def _workprec(args):
+    from .workprec import format_work_precision, run_work_precision, write_work_precision
+
+    res = run_work_precision(vertices=args.vertices, n_poses=args.poses, radius=args.radius, repeats=args.repeats,
+                             seed=args.seed, quick=args.quick, progress=_show_progress(args), fcl=args.fcl)
+    for line in format_work_precision(res):
+        print(line)
+    if args.out is not None:
+        _print_paths(write_work_precision(res, args.out, figures=not args.no_figures))
+    return 0
+
+
+def _reproduce(args):
+    from .reproduce import run_reproduce
+
+    res = run_reproduce(args.out, quick=args.quick, seed=args.seed, parts=args.parts or None,
+                        progress_bar=_show_progress(args))
+    print(f"wrote {len(res['files'])} files to {args.out}; report: {res['report']}")
+    return 0
+
+
 def _show_progress(args):
     return not args.no_progress and sys.stderr.isatty()
 
@@ -235,6 +256,38 @@ def build_parser():
     st.add_argument("--no-figures", action="store_true", help="with --out: skip the figures")
     st.add_argument("--no-progress", action="store_true", help="no progress bar")
     st.set_defaults(func=_study)
+    w = sub.add_parser("workprec", help="error against run time: a cylinder as an n-gon prism, vs python-fcl",
+                       description="Work-precision study: a semi-infinite cylinder approximated by an inscribed n-gon "
+                                   "prism against a hexagonal prism, on near-contact poses with exact labels. For "
+                                   "prismbatch float64/float32 (batch call and single query), python-fcl on the n-gon "
+                                   "and python-fcl's Cylinder: misclassification rate (95 %% Wilson intervals, noise "
+                                   "floor) and the geometric error r(1 - cos(pi/n)) against time per query.")
+    w.add_argument("--quick", action="store_true", help="n = 8 ... 10000 (6 values), 10,000 poses, 2 repeats")
+    w.add_argument("--vertices", type=_int_list, default=None, metavar="N,N,...",
+                   help="vertex counts of the n-gon (default: 8 ... 100000, 11 values)")
+    w.add_argument("--poses", type=int, default=None, metavar="N", help="near-contact poses (default: 20,000)")
+    w.add_argument("--radius", type=float, default=1.0, help="cylinder radius (default: 1)")
+    w.add_argument("--repeats", type=int, default=None, metavar="R", help="timed passes (default: 3)")
+    w.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
+    w.add_argument("--no-fcl", dest="fcl", action="store_false", help="skip python-fcl (its rows stay, as NaN)")
+    w.add_argument("--out", default=None, metavar="DIR", help="write CSV, JSON, Markdown and figures to DIR")
+    w.add_argument("--no-figures", action="store_true", help="with --out: skip the figures")
+    w.add_argument("--no-progress", action="store_true", help="no progress bar")
+    w.set_defaults(func=_workprec)
+    rp = sub.add_parser("reproduce", help="run validation, timing study, work-precision and experiment; one report",
+                        description="Run a short Monte Carlo validation (with the stiff suite), the timing study "
+                                    "against python-fcl and coal, the work-precision study and the paper's experiment, "
+                                    "and write everything into one folder: figures (PNG, SVG), CSV tables, JSON "
+                                    "metadata (versions, CPU, threads, seeds) and report.md. Needs "
+                                    "'prismbatch[reproduce]'. notebooks/reproduce.ipynb redraws the figures from the CSVs.")
+    rp.add_argument("--quick", action="store_true", help="smaller runs of every part (a few minutes on 2 cores)")
+    rp.add_argument("--out", default="reproduce-output", metavar="DIR",
+                    help="output folder (default: reproduce-output)")
+    rp.add_argument("--parts", type=_name_list, default=None, metavar="PART,...",
+                    help="only these parts: validation, study, workprec, experiment (default: all)")
+    rp.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
+    rp.add_argument("--no-progress", action="store_true", help="no progress bars")
+    rp.set_defaults(func=_reproduce)
     r = sub.add_parser("replay", help="re-run saved pose pairs and print how each is decided, step by step",
                        description="Re-run the pose pairs of a replay file (e.g. validation_replay.json written by "
                                    "'prismbatch validate') and print, for each, b's pose in a's frame, the case "

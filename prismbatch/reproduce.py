@@ -34,7 +34,8 @@ PARTS = ("validation", "study", "workprec", "experiment")
 def _validation(out, quick, seed, show):
     from .validate import validate, write_validation
 
-    res = validate(n_pairs=5_000 if quick else 100_000, seed=seed, stiff="quick" if quick else True, progress=show)
+    res = validate(n_pairs=5_000 if quick else 100_000, shapes=("regular", "random", "cylinder"), seed=seed,
+                   lp_samples=300 if quick else 2000, stiff="quick" if quick else True, progress=show)
     return write_validation(res, out), res
 
 
@@ -77,24 +78,28 @@ def _files(paths):
     return out
 
 
-def _section(part, files, out):
-    """One report section: the part's own Markdown (headings demoted) and its figures inline."""
+def _section(part, files):
+    """One report section: the part's own Markdown (headings demoted one level,
+    figure links turned into inline images), plus any figure it does not show."""
     md = [f for f in files if f.endswith(".md")]
-    pngs = [f for f in files if f.endswith(".png")]
-    L = [f"## {_TITLES[part]}", ""]
+    pngs = [Path(f).name for f in files if f.endswith(".png")]
+    L = []
     for f in md:
         text = Path(f).read_text(encoding="utf-8")
         text = re.sub(r"^(#+) ", lambda m: "#" + m.group(1) + " ", text, flags=re.M)
+        # "- [name.png](name.png)" -> an inline image
+        text = re.sub(r"^- \[([^\]]*)\]\(([^)]+\.png)\)", r"![\1](\2)", text, flags=re.M)
         L += [text.rstrip(), ""]
-    if pngs:
-        L += ["### Figures", ""]
-        for f in pngs:
-            name = Path(f).name
-            L += [f"![{name}]({name})", ""]
+    shown = "\n".join(L)
+    missing = [n for n in pngs if f"]({n})" not in shown]
+    if not L:
+        L = [f"## {_TITLES[part]}", ""]
+    if missing:
+        L += ["### More figures", ""] + [f"![{n}]({n})\n" for n in missing]
     return L
 
 
-def run_reproduce(out_dir, *, quick=False, seed=0, parts=PARTS, progress_bar=True, log=print):
+def run_reproduce(out_dir, *, quick=False, seed=0, parts=None, progress_bar=True, log=print):
     """Run the chosen parts and write everything into ``out_dir``.
 
     Parameters
@@ -106,7 +111,8 @@ def run_reproduce(out_dir, *, quick=False, seed=0, parts=PARTS, progress_bar=Tru
     seed : int, optional
         Seed of every random part.
     parts : sequence of str, optional
-        A subset of :data:`PARTS` (in any order; they run in PARTS order).
+        A subset of :data:`PARTS` (in any order; they run in PARTS order);
+        default all.
     progress_bar : bool, optional
         Show progress bars (tqdm, if installed) on stderr.
     log : callable, optional
@@ -118,6 +124,7 @@ def run_reproduce(out_dir, *, quick=False, seed=0, parts=PARTS, progress_bar=Tru
         ``report`` (path of report.md), ``json`` (reproduce.json), ``files``
         (every file written) and ``wall_s`` (seconds per part).
     """
+    parts = PARTS if parts is None else tuple(parts)
     unknown = [p for p in parts if p not in PARTS]
     if unknown:
         raise ValueError(f"unknown part(s) {unknown}; choose from {list(PARTS)}")
@@ -135,7 +142,7 @@ def run_reproduce(out_dir, *, quick=False, seed=0, parts=PARTS, progress_bar=Tru
         wall[part] = time.perf_counter() - t0
         part_files = _files(paths)
         files += part_files
-        sections += _section(part, part_files, out)
+        sections += _section(part, part_files)
         log(f"{part}: {len(part_files)} file(s) in {wall[part]:.1f} s")
         bar.update(1)
     bar.close()
