@@ -25,7 +25,7 @@ def test_readme_python_example_runs():
 def test_quick_start_has_two_commands_and_ci_reads_the_second():
     block = re.search(r"## Quick start.*?```bash\n(.*?)```", README, re.S).group(1).strip().splitlines()
     assert len(block) == 2
-    assert "prismbatch demo" in block[0] and "pytest" in block[1]
+    assert "prismbatch reproduce --quick" in block[0] and "pytest" in block[1]
     # .ci/run extracts the test command with the same awk program: run that part.
     awk = r"awk '/^## Quick start/{f=1} f && /^```/{n++; next} f && n==1 {print}' README.md | sed -n 2p"
     out = subprocess.run(["bash", "-c", awk], cwd=ROOT, capture_output=True, text=True, check=True).stdout.strip()
