@@ -128,6 +128,15 @@ def _reproduce(args):
     return 0
 
 
+def _add_output_options(p, *, figures=True, what="CSV, JSON, Markdown and figures"):
+    """--seed, --out, --no-figures and --no-progress, shared by the result-writing commands."""
+    p.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
+    p.add_argument("--out", default=None, metavar="DIR", help=f"write {what} to DIR")
+    if figures:
+        p.add_argument("--no-figures", action="store_true", help="with --out: skip the figures")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
 def _show_progress(args):
     return not args.no_progress and sys.stderr.isatty()
 
@@ -251,10 +260,7 @@ def build_parser():
                     help="vertex count of Table I (default: 3600)")
     st.add_argument("--lp-checks", type=int, default=10, metavar="K",
                     help="disagreements per cell arbitrated by the exact LP (default: 10)")
-    st.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
-    st.add_argument("--out", default=None, metavar="DIR", help="write CSV, JSON, Markdown and figures to DIR")
-    st.add_argument("--no-figures", action="store_true", help="with --out: skip the figures")
-    st.add_argument("--no-progress", action="store_true", help="no progress bar")
+    _add_output_options(st)
     st.set_defaults(func=_study)
     w = sub.add_parser("workprec", help="error against run time: a cylinder as an n-gon prism, vs python-fcl",
                        description="Work-precision study: a semi-infinite cylinder approximated by an inscribed n-gon "
@@ -268,11 +274,8 @@ def build_parser():
     w.add_argument("--poses", type=int, default=None, metavar="N", help="near-contact poses (default: 20,000)")
     w.add_argument("--radius", type=float, default=1.0, help="cylinder radius (default: 1)")
     w.add_argument("--repeats", type=int, default=None, metavar="R", help="timed passes (default: 3)")
-    w.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
     w.add_argument("--no-fcl", dest="fcl", action="store_false", help="skip python-fcl (its rows stay, as NaN)")
-    w.add_argument("--out", default=None, metavar="DIR", help="write CSV, JSON, Markdown and figures to DIR")
-    w.add_argument("--no-figures", action="store_true", help="with --out: skip the figures")
-    w.add_argument("--no-progress", action="store_true", help="no progress bar")
+    _add_output_options(w)
     w.set_defaults(func=_workprec)
     rp = sub.add_parser("reproduce", help="run validation, timing study, work-precision and experiment; one report",
                         description="Run a short Monte Carlo validation (with the stiff suite), the timing study "

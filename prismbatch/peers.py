@@ -23,6 +23,7 @@ __all__ = [
     "fcl_prism",
     "coal_prism",
     "FCLPeer",
+    "FCLCylinderPeer",
     "CoalPeer",
 ]
 
@@ -281,12 +282,14 @@ class _Peer:
     """
 
     def __init__(self, xy_a, xy_b, length):
+        self._setup(self._geometry(xy_a, float(length)), self._geometry(xy_b, float(length)), length)
+
+    def _setup(self, geom_a, geom_b, length):
         lib = self._import()
         self._lib = lib
         self._Transform = getattr(lib, self._transform_name)
         self.length = float(length)
-        self.geom_a = self._geometry(xy_a, self.length)
-        self.geom_b = self._geometry(xy_b, self.length)
+        self.geom_a, self.geom_b = geom_a, geom_b
         self.obj_a = lib.CollisionObject(self.geom_a, self._Transform())
         self.obj_b = lib.CollisionObject(self.geom_b, self._Transform())
 
@@ -332,6 +335,25 @@ class FCLPeer(_Peer):
     @staticmethod
     def _is_collision(res):
         return res.is_collision
+
+
+class FCLCylinderPeer(FCLPeer):
+    """python-fcl's own ``Cylinder(radius, length)`` as a, against b's finite prism stand-in.
+
+    The exact-shape peer of the work-precision study. FCL's cylinder is
+    centred on its origin along its local z, so a's pose is shifted by
+    ``length / 2`` along a's axis: its end face is then a's end face and it
+    extends along d_a, like a prism stand-in.
+    """
+
+    def __init__(self, radius, xy_b, length):
+        fcl = _import_fcl()
+        self._setup(fcl.Cylinder(float(radius), float(length)), fcl_prism(xy_b, float(length)), length)
+
+    def prepare(self, pos_a, rot_a, pos_b, rot_b):
+        """As :meth:`FCLPeer.prepare`, with a's position moved to the cylinder's centre."""
+        _, pos_a, rot_a, pos_b, rot_b = _batch_poses(pos_a, rot_a, pos_b, rot_b)
+        return _Peer.prepare(pos_a + 0.5 * self.length * rot_a[:, :, 2], rot_a, pos_b, rot_b)
 
 
 class CoalPeer(_Peer):

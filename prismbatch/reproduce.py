@@ -35,7 +35,8 @@ def _validation(out, quick, seed, show):
     from .validate import validate, write_validation
 
     res = validate(n_pairs=5_000 if quick else 100_000, shapes=("regular", "random", "cylinder"), seed=seed,
-                   lp_samples=300 if quick else 2000, stiff="quick" if quick else True, progress=show)
+                   lp_samples=300 if quick else 2000, max_band_records=100 if quick else 1000,
+                   stiff="quick" if quick else True, progress=show)
     return write_validation(res, out), res
 
 

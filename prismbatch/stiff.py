@@ -651,14 +651,19 @@ def _fam_vertices(rng, n, nv):
     return _mixed(rng, [A] * n, [B] * n, _cycle(n, rng))
 
 
-def _sliver_pair_polys(rng, n, aspect):
+def _special_pair_polys(rng, n, make, param):
+    """Polygon pairs where a, b or both (cycling) are ``make(rng, param, size)``."""
     A, B = _polys(rng, n), _polys(rng, n)
-    for k in range(n):  # a sliver, b sliver, both
+    for k in range(n):  # a special, b special, both
         if k % 3 != 1:
-            A[k] = sliver_polygon(rng, aspect, float(rng.uniform(0.5, 2.0)))
+            A[k] = make(rng, param, float(rng.uniform(0.5, 2.0)))
         if k % 3 != 0:
-            B[k] = sliver_polygon(rng, aspect, float(rng.uniform(0.5, 2.0)))
+            B[k] = make(rng, param, float(rng.uniform(0.5, 2.0)))
     return A, B
+
+
+def _sliver_pair_polys(rng, n, aspect):
+    return _special_pair_polys(rng, n, sliver_polygon, aspect)
 
 
 def _fam_sliver(rng, n, aspect):
@@ -666,13 +671,7 @@ def _fam_sliver(rng, n, aspect):
 
 
 def _collinear_pair_polys(rng, n, bulge):
-    A, B = _polys(rng, n), _polys(rng, n)
-    for k in range(n):
-        if k % 3 != 1:
-            A[k] = collinear_polygon(rng, bulge, float(rng.uniform(0.5, 2.0)))
-        if k % 3 != 0:
-            B[k] = collinear_polygon(rng, bulge, float(rng.uniform(0.5, 2.0)))
-    return A, B
+    return _special_pair_polys(rng, n, collinear_polygon, bulge)
 
 
 def _fam_collinear(rng, n, bulge):

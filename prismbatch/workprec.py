@@ -624,7 +624,7 @@ def run_work_precision(*, vertices=None, n_poses=None, radius=1.0, repeats=None,
     L = None
     fcl_items = None
     if fcl_mod is not None:
-        from .peers import FCLPeer, fcl_standin_length  # noqa: PLC0415
+        from .peers import FCLCylinderPeer, FCLPeer, fcl_standin_length  # noqa: PLC0415
 
         L = max(fcl_standin_length(probe.xy, shape_b.xy, P.pos_a[k], P.pos_b[k]) for k in range(n_poses))
         fcl_items = FCLPeer.prepare(P.pos_a, P.rot_a, P.pos_b, P.rot_b)
@@ -699,7 +699,7 @@ def run_work_precision(*, vertices=None, n_poses=None, radius=1.0, repeats=None,
         depth_c = P.depth_in_cylinder(shape_b)
         if fcl_mod is not None:
             t0 = perf()
-            peer = _FCLCylinderPeer(fcl_mod, radius, shape_b.xy, L)
+            peer = FCLCylinderPeer(radius, shape_b.xy, L)
             setup = perf() - t0
             cyl_items = peer.prepare(P.pos_a, P.rot_a, P.pos_b, P.rot_b)
             times, h, same = _timed_passes(lambda: _timed_run(peer, cyl_items), repeats)
@@ -734,48 +734,6 @@ def _timed_run(peer, its):
     t = time.perf_counter()
     h = peer.run(its)
     return time.perf_counter() - t, h
-
-
-class _FCLCylinderPeer:
-    """python-fcl ``Cylinder(r, L)`` against b's finite stand-in (``fcl.Convex``).
-
-    FCL's cylinder is centred on its origin along its local z: it is shifted
-    by ``L/2`` along a's axis so that its end face is a's end face. The query
-    loop is the one of :class:`prismbatch.peers.FCLPeer` (two transforms and a
-    fresh request and result per query).
-    """
-
-    def __init__(self, fcl_mod, radius, xy_b, length):
-        from .peers import fcl_prism  # noqa: PLC0415
-
-        self._fcl = fcl_mod
-        self.length = float(length)
-        self.geom_a = fcl_mod.Cylinder(float(radius), self.length)
-        self.geom_b = fcl_prism(xy_b, self.length)
-        self.obj_a = fcl_mod.CollisionObject(self.geom_a, fcl_mod.Transform())
-        self.obj_b = fcl_mod.CollisionObject(self.geom_b, fcl_mod.Transform())
-
-    def prepare(self, pos_a, rot_a, pos_b, rot_b):
-        """Per-pair contiguous (R_a, p_a shifted, R_b, p_b) tuples (outside timed loops)."""
-        rot_a, rot_b = np.asarray(rot_a, dtype=float), np.asarray(rot_b, dtype=float)
-        pos_a = np.asarray(pos_a, dtype=float) + 0.5 * self.length * rot_a[:, :, 2]
-        pos_b = np.asarray(pos_b, dtype=float)
-        f = np.ascontiguousarray
-        return [(f(rot_a[k]), f(pos_a[k]), f(rot_b[k]), f(pos_b[k])) for k in range(len(pos_a))]
-
-    def run(self, its):
-        """(N,) bool: collide the prepared pairs."""
-        lib = self._fcl
-        oa, ob = self.obj_a, self.obj_b
-        Transform, Request, Result, collide = lib.Transform, lib.CollisionRequest, lib.CollisionResult, lib.collide
-        out = np.empty(len(its), dtype=bool)
-        for k, (ra, pa, rb, pb_) in enumerate(its):
-            oa.setTransform(Transform(ra, pa))
-            ob.setTransform(Transform(rb, pb_))
-            res = Result()
-            collide(oa, ob, Request(), res)
-            out[k] = res.is_collision
-        return out
 
 
 # ---------------------------------------------------------------------------

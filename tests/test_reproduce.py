@@ -82,8 +82,9 @@ def test_notebook_redraws_every_figure_from_the_csvs(quick_output, tmp_path, mon
         for ax in fig.axes:
             if ax.get_visible():
                 assert ax.get_xlabel() and ax.get_ylabel(), name
-                # every plotted line holds finite data somewhere
+                # the axes hold finite data: lines, bars or markers
                 ys = [np.asarray(line.get_ydata(), dtype=float) for line in ax.get_lines()]
+                ys += [np.array([p.get_height() for p in ax.patches], dtype=float)]
                 assert any(np.isfinite(y).any() for y in ys), name
     import matplotlib.pyplot as plt
 
