@@ -23,7 +23,7 @@ def pair_world(avx, avy, aeang, aetab, avang, ainv, aoff, arad, acen, ka,
     """One pair from world poses: (hit, case, contact x, y, z in world).
 
     Shapes ka of set a and kb of set b; Pa (3,), Ra (3, 3) etc. ``trace``:
-    empty, or TRACE_SIZE floats to fill (see _projection.TRACE_FIELDS).
+    None, or TRACE_SIZE floats to fill (see _projection.TRACE_FIELDS).
     """
     # End-face centres in world coordinates (the user's origin need not
     # lie inside the polygon).
@@ -61,7 +61,7 @@ def pair_world(avx, avy, aeang, aetab, avang, ainv, aoff, arad, acen, ka,
     na = aoff[ka + 1] - sa
     sb = boff[kb]
     nb = boff[kb + 1] - sb
-    if trace.shape[0] > 0:
+    if trace is not None:
         trace[T_TOL] = tol
         for j, v in enumerate((px, py, pz)):
             trace[T_P + j] = v
@@ -90,7 +90,6 @@ def _collide_loop(avx, avy, aeang, aetab, avang, ainv, aoff, arad, acen,
     nrb = rot_b.shape[0]
     nsa = arad.shape[0]
     nsb = brad.shape[0]
-    no_trace = np.empty(0)  # read-only, never written
     for ip in prange(n):
         # prange's index is unsigned; mixing it with int64 would give floats.
         i = np.int64(ip)
@@ -99,7 +98,7 @@ def _collide_loop(avx, avy, aeang, aetab, avang, ainv, aoff, arad, acen,
             avx, avy, aeang, aetab, avang, ainv, aoff, arad, acen, min(i, nsa - 1),
             bvx, bvy, beang, betab, boff, brad, bcen, min(i, nsb - 1),
             pos_a[min(i, npa - 1)], rot_a[min(i, nra - 1)], pos_b[min(i, npb - 1)], rot_b[min(i, nrb - 1)],
-            rtol, atol, eps, no_trace)
+            rtol, atol, eps, None)
         hit_out[i] = hit
         case_out[i] = case
         if want_contact:
@@ -168,5 +167,5 @@ def collide_pair(avx, avy, aeang, aetab, avang, ainv, aoff, arad, acen,
             return 1 + kind + 4 * k, val, False, 0, nan, nan, nan
     hit, case, cx, cy, cz = pair_world(avx, avy, aeang, aetab, avang, ainv, aoff, arad, acen, 0,
                                        bvx, bvy, beang, betab, boff, brad, bcen, 0,
-                                       Pa, Ra, Pb, Rb, rtol, atol, eps, np.empty(0))
+                                       Pa, Ra, Pb, Rb, rtol, atol, eps, None)
     return 0, 0.0, hit, case, cx, cy, cz

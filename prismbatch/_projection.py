@@ -57,8 +57,8 @@ CASES = {
         "(end-face part, cross-section and sweep) vs polygon",
 }
 
-# --- step-by-step trace (used by `prismbatch replay`; the batch kernels pass an
-# empty array and skip every write) ---
+# --- step-by-step trace (used by `prismbatch replay`; the batch kernels pass
+# None, which compiles every trace write away) ---
 TRACE_FIELDS = (
     "tol", "p_x", "p_y", "p_z", "R00", "R01", "R02", "R10", "R11", "R12", "R20", "R21", "R22",
     "exit", "i_top", "delta3", "lateral_offset", "axis_xy_length", "reach_T", "height_drift", "perpendicular",
@@ -92,9 +92,9 @@ EXITS = {
 }
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _done(trace, exit_code, case, hit):
-    if trace.shape[0] > 0:
+    if trace is not None:
         trace[T_EXIT] = exit_code
         trace[T_CASE] = case
         trace[T_HIT] = 1.0 if hit else 0.0
@@ -121,11 +121,13 @@ def pair_test(avx, avy, aeang, aetab, avang, ainv, sa, na, ra,
     """Collision test for one pair in a's centred frame.
 
     Returns (hit, case, cx, cy, cz): the case number and, on a hit, a contact
-    point (a's centred frame) lying within tol of both bodies. ``trace`` is an
-    empty array (no tracing) or a float array of TRACE_SIZE that receives the
-    intermediate quantities (fields TRACE_FIELDS, exit codes EXITS).
+    point (a's centred frame) lying within tol of both bodies. ``trace`` is
+    None (no tracing) or a float array of TRACE_SIZE that receives the
+    intermediate quantities (fields TRACE_FIELDS, exit codes EXITS). With
+    None, Numba compiles a specialisation with every trace branch removed,
+    so the batch kernels pay nothing for it (an array argument would cost
+    reference counting on every call).
     """
-    tr = trace.shape[0] > 0
     nan = math.nan
     hx = r20
     hy = r21
@@ -135,7 +137,7 @@ def pair_test(avx, avy, aeang, aetab, avang, ainv, sa, na, ra,
     top_v = bvy[sb + imax]
     top_h = hx * top_u + hy * top_v
     d3 = pz + top_h  # the paper's Δ3
-    if tr:
+    if trace is not None:
         trace[T_ITOP] = imax
         trace[T_D3] = d3
     if d3 < -tol and c <= 0.0:
@@ -151,7 +153,7 @@ def pair_test(avx, avy, aeang, aetab, avang, ainv, sa, na, ra,
     perp = drift <= 0.25 * tol
     ceff = 0.0 if perp else c
     tz = tol + drift if perp else tol
-    if tr:
+    if trace is not None:
         trace[T_PR] = pr
         trace[T_WN] = wn
         trace[T_REACH] = T
@@ -171,7 +173,7 @@ def pair_test(avx, avy, aeang, aetab, avang, ainv, sa, na, ra,
             case = CASE_RETURN
         else:
             k = _near_top_count(bvx, bvy, sb, nb, hx, hy, imax, top_h, tol)
-            if tr:
+            if trace is not None:
                 trace[T_NTOP] = k
             if perp:
                 case = CASE_PERP_VERTEX if k == 1 else CASE_PERP_EDGE
@@ -198,7 +200,7 @@ def pair_test(avx, avy, aeang, aetab, avang, ainv, sa, na, ra,
         uy = r12 / wn
         along = ux * px + uy * py
         across = abs(ux * py - uy * px)
-        if tr:
+        if trace is not None:
             trace[T_ACROSS] = across
             trace[T_ALONG] = along
             trace[T_MARGIN] = margin
@@ -209,14 +211,14 @@ def pair_test(avx, avy, aeang, aetab, avang, ainv, sa, na, ra,
         if ceff < 0.0:
             lhs = abs(c) * (-along - margin)
             rhs = wn * (d3 + tz)
-            if tr:
+            if trace is not None:
                 trace[T_FACE_L] = lhs
                 trace[T_FACE_R] = rhs
             if lhs > rhs:
                 _done(trace, 6, coarse, False)
                 return False, coarse, nan, nan, nan
     elif pr > margin:
-        if tr:
+        if trace is not None:
             trace[T_MARGIN] = margin
         _done(trace, 7, coarse, False)
         return False, coarse, nan, nan, nan
@@ -226,7 +228,7 @@ def pair_test(avx, avy, aeang, aetab, avang, ainv, sa, na, ra,
         ex = px + r00 * top_u + r01 * top_v
         ey = py + r10 * top_u + r11 * top_v
         depth = point_polygon_distance(avx, avy, avang, ainv, sa, na, ex, ey)
-        if tr:
+        if trace is not None:
             trace[T_EARLY] = depth
         if depth >= 0.0:
             _done(trace, 8, case, True)
@@ -236,7 +238,7 @@ def pair_test(avx, avy, aeang, aetab, avang, ainv, sa, na, ra,
     imin = extreme_vertex(bvx, bvy, beang, betab, sb, nb, -hx, -hy)
     sp = (px, py, r00, r01, r10, r11, r02, r12, hx, hy, pz, ceff, T, tz, float(imin), float(imax))
     hit, iters, ax, ay, u, v, t = gjk(avx, avy, aeang, aetab, sa, na, bvx, bvy, beang, betab, sb, nb, sp, tol)
-    if tr:
+    if trace is not None:
         trace[T_IBOT] = imin
         trace[T_GJK_HIT] = 1.0 if hit else 0.0
         trace[T_GJK_IT] = iters
