@@ -92,8 +92,14 @@ def _validate(args):
     if args.fcl_fraction is not None and not args.fcl:
         raise ValueError("--fcl-fraction and --no-fcl contradict each other")
     stiff = "quick" if args.stiff_quick else bool(args.stiff)
+    dists = tuple(d for d in args.distributions if d != "stiff")
+    if len(dists) < len(args.distributions):  # "stiff" names the stiff suite, which has its own generators
+        stiff = stiff or True
+    if not dists:
+        raise ValueError("--distributions needs at least one of facing, free, near-contact, degenerate "
+                         "(stiff adds the stiff suite to them)")
     shapes = args.shapes[0] if len(args.shapes) == 1 else args.shapes
-    res = validate(args.pairs, distributions=args.distributions, shapes=shapes, vertices=args.vertices,
+    res = validate(args.pairs, distributions=dists, shapes=shapes, vertices=args.vertices,
                    seed=args.seed, chunk_size=args.chunk_size, dtype=args.dtype, rtol=args.rtol, atol=args.atol,
                    fcl=args.fcl_fraction if args.fcl_fraction is not None else args.fcl, lp_samples=args.lp_samples,
                    contact_check=not args.no_contact_check, max_band_records=args.max_band_records, stiff=stiff,
@@ -207,7 +213,8 @@ def build_parser():
                                    "outside the band, a contact is invalid or an output is non-finite.")
     v.add_argument("--pairs", type=int, default=100_000, metavar="N", help="pairs per distribution (default: 100,000)")
     v.add_argument("--distributions", type=_name_list, default=("facing", "free", "near-contact", "degenerate"),
-                   metavar="NAME,...", help="facing, free, near-contact, degenerate (default: all four)")
+                   metavar="NAME,...", help="facing, free, near-contact, degenerate, and stiff (the stiff and extreme suite, "
+                        "same as --stiff) (default: the first four)")
     v.add_argument("--shapes", type=_name_list, default=("regular",), metavar="KIND,...",
                    help="regular, random (convex polygons), cylinder (n-gon fits); several are cycled per block "
                         "(default: regular)")

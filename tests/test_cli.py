@@ -41,3 +41,23 @@ def test_demo_counts_are_consistent_and_reproducible():
 def test_demo_bad_argument_is_an_error_message(capsys):
     assert main(["demo", "--pairs", "0", "--no-progress"]) == 2
     assert "error" in capsys.readouterr().err
+
+
+def test_help_lists_every_command(capsys):
+    with pytest.raises(SystemExit):
+        main(["--help"])
+    out = capsys.readouterr().out
+    for cmd in ("demo", "experiment", "validate", "study", "workprec", "reproduce", "replay"):
+        assert cmd in out
+
+
+def test_validate_stiff_alone_is_an_error_message(capsys):
+    assert main(["validate", "--distributions", "stiff", "--no-progress"]) == 2
+    assert "at least one of facing" in capsys.readouterr().err
+
+
+def test_list_arguments_are_checked(capsys):
+    with pytest.raises(SystemExit) as e:
+        main(["study", "--vertices", "36,abc"])
+    assert e.value.code == 2
+    assert "comma-separated integers" in capsys.readouterr().err
