@@ -12,13 +12,45 @@ from ._projection import CASES
 from .poses import ORTHO_TOL_F32, ORTHO_TOL_F64, as_pose, common_batch_size
 from .shapes import as_prism_set
 
-__all__ = ["collide", "Collider", "CollisionResult", "PairResult", "CASES", "DEFAULT_RTOL"]
+__all__ = ["collide", "Collider", "CollisionResult", "PairResult", "CASES", "DEFAULT_RTOL", "pair_scale_tolerance"]
 
 #: Default relative tolerance per dtype. The absolute tolerance of a pair is
 #: ``atol + rtol * (R_a + R_b + |c_b - c_a|) + 4 eps (|c_a| + |c_b|)`` (bounding
 #: radii of the end faces about their centres, the distance between the
 #: centres, and a rounding floor for positions far from the world origin).
 DEFAULT_RTOL = {np.dtype(np.float64): 1e-9, np.dtype(np.float32): 1e-5}
+
+
+def pair_scale_tolerance(shape_a, shape_b, pos_a, rot_a, pos_b, rot_b, *, rtol=None, atol=0.0, dtype=np.float64):
+    """Scene scale and touching tolerance of each pair, as the kernels compute them (NumPy).
+
+    ``S = R_a + R_b + |c_b - c_a|`` and ``tol = atol + rtol S + 4 eps (|c_a| + |c_b|)``
+    (end-face radii about the area centroids, centroids c in world
+    coordinates, eps of ``dtype``); for reports and references that need the
+    kernels' tolerance outside them.
+
+    Parameters
+    ----------
+    shape_a, shape_b : Prism
+    pos_a, pos_b : numpy.ndarray, shape (N, 3)
+    rot_a, rot_b : numpy.ndarray, shape (N, 3, 3)
+    rtol : float, optional
+        Default :data:`DEFAULT_RTOL` of ``dtype``.
+    atol : float, optional
+    dtype : numpy dtype, optional
+
+    Returns
+    -------
+    S, tol : numpy.ndarray, shape (N,)
+    """
+    dt = np.dtype(dtype)
+    rtol = DEFAULT_RTOL[dt] if rtol is None else rtol
+    eps = float(np.finfo(dt).eps)
+    ca = pos_a + rot_a[:, :, :2] @ shape_a.centre
+    cb = pos_b + rot_b[:, :, :2] @ shape_b.centre
+    S = shape_a.radius + shape_b.radius + np.linalg.norm(cb - ca, axis=1)
+    tol = atol + rtol * S + 4 * eps * (np.linalg.norm(ca, axis=1) + np.linalg.norm(cb, axis=1))
+    return S, tol
 
 
 @dataclass(frozen=True)

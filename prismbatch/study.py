@@ -73,9 +73,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ._report import new_figure, progress as _progress_bar, run_metadata, save_figure, write_csv, write_json
+from ._report import new_figure, package_versions, progress as _progress_bar, run_metadata, save_figure, write_csv, write_json
 from .casegen import CASE_NUMBERS, EXACT_CASES, case_poses
-from .collide import CASES, Collider
+from .collide import CASES, Collider, pair_scale_tolerance
 from .shapes import Prism
 
 __all__ = ["run_study", "format_study", "write_study", "plot_study", "fit_growth", "StudyResult",
@@ -279,17 +279,8 @@ class _NoGC:
 
 
 def _versions():
-    from importlib import metadata
-
-    from . import __version__
-
-    out = {"prismbatch": __version__}
-    for key, dist in (("fcl", "python-fcl"), ("coal", "coal")):
-        try:
-            out[key] = metadata.version(dist)
-        except metadata.PackageNotFoundError:
-            out[key] = None
-    return out
+    v = package_versions()
+    return {"prismbatch": v["prismbatch"], "fcl": v["python-fcl"], "coal": v["coal"]}
 
 
 def _method_labels(versions):
@@ -418,13 +409,6 @@ def _peer_loop(peer, items):
     return lambda: peer.run(items)
 
 
-def _scene_size(a, b, poses):
-    pa, ra, pb_, rb = poses
-    ca = pa + np.einsum("kij,j->ki", ra[:, :, :2], a.centre)
-    cb = pb_ + np.einsum("kij,j->ki", rb[:, :, :2], b.centre)
-    return a.radius + b.radius + np.linalg.norm(cb - ca, axis=1)
-
-
 def _adjudicate(a, b, poses, idx, pb_hit, limit, rtol):
     """LP margins of up to ``limit`` disagreeing poses: (checked, touching, pb_right, pb_wrong) or Nones."""
     import importlib.util
@@ -434,7 +418,7 @@ def _adjudicate(a, b, poses, idx, pb_hit, limit, rtol):
     from .exact import margin_lp
 
     idx = idx[:limit]
-    S = _scene_size(a, b, tuple(p[idx] for p in poses))
+    S, _ = pair_scale_tolerance(a, b, *(p[idx] for p in poses))
     touching = right = wrong = 0
     for j, k in enumerate(idx):
         m = margin_lp(a.xy, poses[0][k], poses[1][k], b.xy, poses[2][k], poses[3][k])

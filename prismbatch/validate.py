@@ -65,7 +65,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .collide import DEFAULT_RTOL, Collider
+from .collide import DEFAULT_RTOL, Collider, pair_scale_tolerance
 from .shapes import Prism
 
 __all__ = ["validate", "ValidationResult", "format_validation", "write_validation", "run_chunk",
@@ -355,11 +355,8 @@ def generate_block(config, distribution, block):
 
 
 def _pair_scale_tol(cfg, sa, sb, pos_a, rot_a, pos_b, rot_b):
-    ca = _world_centres(sa, pos_a, rot_a)
-    cb = _world_centres(sb, pos_b, rot_b)
-    S = sa.radius + sb.radius + np.linalg.norm(cb - ca, axis=1)
-    eps = float(np.finfo(np.dtype(cfg["dtype"])).eps)
-    tol = cfg["atol"] + cfg["rtol"] * S + 4 * eps * (np.linalg.norm(ca, axis=1) + np.linalg.norm(cb, axis=1))
+    S, tol = pair_scale_tolerance(sa, sb, pos_a, rot_a, pos_b, rot_b, rtol=cfg["rtol"], atol=cfg["atol"],
+                                  dtype=cfg["dtype"])
     return S, tol, np.maximum(tol, LP_REL * S)
 
 

@@ -142,7 +142,7 @@ import numpy as np
 
 from ._report import (new_figure, package_versions, progress as _progress, run_metadata, save_figure,
                       write_csv, write_json)
-from .collide import DEFAULT_RTOL, Collider
+from .collide import DEFAULT_RTOL, Collider, pair_scale_tolerance
 from .sampling import AXIS_DOWN
 from .shapes import Prism
 
@@ -493,16 +493,6 @@ def method_labels(versions):
     }
 
 
-def _pair_tolerance(shape_a, shape_b, P, dtype):
-    """Per-pair prismbatch tolerance (README): rtol (R_a + R_b + |dc|) + 4 eps (|c_a| + |c_b|)."""
-    rtol = DEFAULT_RTOL[np.dtype(dtype)]
-    eps = float(np.finfo(dtype).eps)
-    ca = P.pos_a + np.einsum("nij,j->ni", P.rot_a[:, :, :2], shape_a.centre)
-    cb = P.pos_b + np.einsum("nij,j->ni", P.rot_b[:, :, :2], shape_b.centre)
-    nca, ncb = np.linalg.norm(ca, axis=1), np.linalg.norm(cb, axis=1)
-    return rtol * (shape_a.radius + shape_b.radius + np.linalg.norm(cb - ca, axis=1)) + 4 * eps * (nca + ncb)
-
-
 def _error_stats(pred, P, depth, tol):
     """Misclassification counts, rates and Wilson intervals against the exact labels."""
     N = len(P)
@@ -666,7 +656,7 @@ def run_work_precision(*, vertices=None, n_poses=None, radius=1.0, repeats=None,
             setup_pb = perf() - t0
             for dt, tag in ((np.float64, "pb64"), (np.float32, "pb32")):
                 if tol[dt] is None:
-                    tol[dt] = _pair_tolerance(shape_a, shape_b, P, dt)
+                    tol[dt] = pair_scale_tolerance(shape_a, shape_b, P.pos_a, P.rot_a, P.pos_b, P.rot_b, dtype=dt)[1]
                 col, A, its = cols[dt], arrays[dt], items[dt]
 
                 def batch(col=col, A=A):

@@ -98,3 +98,15 @@ def test_bad_replay_files_raise(tmp_path):
         a, b, pa, ra, pbp, rb = _pairs()[0]
         rec = make_record("t", a, b, pa, ra, pbp, rb, rtol=1e-9, hit=False, case=1)
         replay(write_replay(tmp_path / "ok.json", [rec]), out=lambda s: None, indices=[3])
+
+
+def test_pair_scale_tolerance_matches_the_kernels_tolerance():
+    from prismbatch.collide import pair_scale_tolerance
+
+    pairs = _pairs()
+    for dtype in (np.float64, np.float32):
+        for a, b, pa, ra, pbp, rb in pairs[::3]:
+            S, tol = pair_scale_tolerance(a, b, pa[None], ra[None], pbp[None], rb[None], atol=1e-12, dtype=dtype)
+            e = pb.Collider(a, b, atol=1e-12, dtype=dtype).explain(pa, ra, pbp, rb)
+            assert tol[0] == pytest.approx(e["tol"], rel=1e-5 if dtype == np.float32 else 1e-12)
+            assert S[0] > a.radius + b.radius
