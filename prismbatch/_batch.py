@@ -7,12 +7,16 @@ index, no copies) and writes only its own output slots.
 """
 
 import math
+import os
+import sys
 import types
 
+import numba
 import numpy as np
 from numba import njit, prange
 
 from ._projection import T_P, T_R, T_TOL, pair_test
+from .config import MAX_MAGNITUDE
 from .poses import first_bad_rotation
 
 
@@ -37,19 +41,51 @@ def pair_world(avx, avy, aeang, aetab, avang, ainv, aoff, arad, acen, ka,
     dx = Pb[0] + Rb[0, 0] * cbx + Rb[0, 1] * cby - ox
     dy = Pb[1] + Rb[1, 0] * cbx + Rb[1, 1] * cby - oy
     dz = Pb[2] + Rb[2, 0] * cbx + Rb[2, 1] * cby - oz
-    # b's pose in a's centred frame: p = Ra^T d, R = Ra^T Rb.
-    px = Ra[0, 0] * dx + Ra[1, 0] * dy + Ra[2, 0] * dz
-    py = Ra[0, 1] * dx + Ra[1, 1] * dy + Ra[2, 1] * dz
-    pz = Ra[0, 2] * dx + Ra[1, 2] * dy + Ra[2, 2] * dz
-    r00 = Ra[0, 0] * Rb[0, 0] + Ra[1, 0] * Rb[1, 0] + Ra[2, 0] * Rb[2, 0]
-    r01 = Ra[0, 0] * Rb[0, 1] + Ra[1, 0] * Rb[1, 1] + Ra[2, 0] * Rb[2, 1]
-    r02 = Ra[0, 0] * Rb[0, 2] + Ra[1, 0] * Rb[1, 2] + Ra[2, 0] * Rb[2, 2]
-    r10 = Ra[0, 1] * Rb[0, 0] + Ra[1, 1] * Rb[1, 0] + Ra[2, 1] * Rb[2, 0]
-    r11 = Ra[0, 1] * Rb[0, 1] + Ra[1, 1] * Rb[1, 1] + Ra[2, 1] * Rb[2, 1]
-    r12 = Ra[0, 1] * Rb[0, 2] + Ra[1, 1] * Rb[1, 2] + Ra[2, 1] * Rb[2, 2]
-    r20 = Ra[0, 2] * Rb[0, 0] + Ra[1, 2] * Rb[1, 0] + Ra[2, 2] * Rb[2, 0]
-    r21 = Ra[0, 2] * Rb[0, 1] + Ra[1, 2] * Rb[1, 1] + Ra[2, 2] * Rb[2, 1]
-    r22 = Ra[0, 2] * Rb[0, 2] + Ra[1, 2] * Rb[1, 2] + Ra[2, 2] * Rb[2, 2]
+    # b's pose in a's centred frame, p = Ra^-1 d and R = Ra^-1 Rb, with the
+    # exact inverse (rows a1 x a2, a2 x a0, a0 x a1 over det): the body is
+    # the affine image of the matrix as given, whose rounding from
+    # orthonormal Ra^T would misplace b by |Ra^T Ra - I| |d|.
+    i00 = Ra[1, 1] * Ra[2, 2] - Ra[2, 1] * Ra[1, 2]
+    i01 = Ra[2, 1] * Ra[0, 2] - Ra[0, 1] * Ra[2, 2]
+    i02 = Ra[0, 1] * Ra[1, 2] - Ra[1, 1] * Ra[0, 2]
+    i10 = Ra[1, 2] * Ra[2, 0] - Ra[2, 2] * Ra[1, 0]
+    i11 = Ra[2, 2] * Ra[0, 0] - Ra[0, 2] * Ra[2, 0]
+    i12 = Ra[0, 2] * Ra[1, 0] - Ra[1, 2] * Ra[0, 0]
+    i20 = Ra[1, 0] * Ra[2, 1] - Ra[2, 0] * Ra[1, 1]
+    i21 = Ra[2, 0] * Ra[0, 1] - Ra[0, 0] * Ra[2, 1]
+    i22 = Ra[0, 0] * Ra[1, 1] - Ra[1, 0] * Ra[0, 1]
+    inv_det = 1.0 / (Ra[0, 0] * i00 + Ra[1, 0] * i01 + Ra[2, 0] * i02)
+    i00 *= inv_det
+    i01 *= inv_det
+    i02 *= inv_det
+    i10 *= inv_det
+    i11 *= inv_det
+    i12 *= inv_det
+    i20 *= inv_det
+    i21 *= inv_det
+    i22 *= inv_det
+    px = i00 * dx + i01 * dy + i02 * dz
+    py = i10 * dx + i11 * dy + i12 * dz
+    pz = i20 * dx + i21 * dy + i22 * dz
+    r00 = i00 * Rb[0, 0] + i01 * Rb[1, 0] + i02 * Rb[2, 0]
+    r01 = i00 * Rb[0, 1] + i01 * Rb[1, 1] + i02 * Rb[2, 1]
+    r10 = i10 * Rb[0, 0] + i11 * Rb[1, 0] + i12 * Rb[2, 0]
+    r11 = i10 * Rb[0, 1] + i11 * Rb[1, 1] + i12 * Rb[2, 1]
+    r20 = i20 * Rb[0, 0] + i21 * Rb[1, 0] + i22 * Rb[2, 0]
+    r21 = i20 * Rb[0, 1] + i21 * Rb[1, 1] + i22 * Rb[2, 1]
+    # b's axis relative to a's, well conditioned for every tilt: Ra^-1 d_a
+    # is exactly e3, so R e3 = s e3 + Ra^-1 (d_b - s d_a) with s = sign of
+    # d_a.d_b; the difference is exact (Sterbenz) for nearly (anti)parallel
+    # axes, so a tilt of 1e-16 keeps its direction and identical axes give
+    # exactly zero (forming Ra^-1 d_b directly leaves eps-level noise that
+    # the reach T ~ 1/tilt turns into a sweep in a random direction).
+    s = 1.0 if Ra[0, 2] * Rb[0, 2] + Ra[1, 2] * Rb[1, 2] + Ra[2, 2] * Rb[2, 2] >= 0.0 else -1.0
+    ex = Rb[0, 2] - s * Ra[0, 2]
+    ey = Rb[1, 2] - s * Ra[1, 2]
+    ez = Rb[2, 2] - s * Ra[2, 2]
+    r02 = i00 * ex + i01 * ey + i02 * ez
+    r12 = i10 * ex + i11 * ey + i12 * ez
+    r22 = s + (i20 * ex + i21 * ey + i22 * ez)
     ra = arad[ka]
     rb = brad[kb]
     # Scale-aware tolerance: rounding grows with the sizes involved, and
@@ -115,7 +151,10 @@ def _variant(func, name):
     and parallel kernels would overwrite each other's cache entry and one
     would silently run as the other.
     """
-    code = func.__code__.replace(co_name=name, co_qualname=name)
+    renames = {"co_name": name}
+    if sys.version_info >= (3, 11):  # co_qualname is new in 3.11
+        renames["co_qualname"] = name
+    code = func.__code__.replace(**renames)
     g = types.FunctionType(code, func.__globals__, name, func.__defaults__, func.__closure__)
     g.__qualname__ = name
     g.__doc__ = func.__doc__
@@ -130,12 +169,48 @@ collide_parallel = njit(cache=True, parallel=True)(_variant(_collide_loop, "coll
 #: left to choose: starting the threads (OpenMP here) can cost milliseconds.
 PARALLEL_MIN_PAIRS = 4096
 
+# GNU OpenMP cannot start threads in a child forked after it ran threads in
+# the parent (Numba aborts the child). Such a child runs the serial kernels.
+_threads = {"used": False, "forked_after_omp": False, "warned": False}
+
+
+def _after_fork_in_child():
+    if _threads["used"]:
+        try:
+            layer = numba.threading_layer()
+        except ValueError:  # no threading layer started after all
+            return
+        _threads["forked_after_omp"] = layer == "omp"
+
+
+os.register_at_fork(after_in_child=_after_fork_in_child)
+
+
+def use_parallel(parallel, n):
+    """Whether a batch of ``n`` runs on the parallel kernel.
+
+    ``parallel`` None chooses by batch size. In a process forked after a
+    parallel call under GNU OpenMP the answer is False, with a one-line
+    warning the first time (threads there would abort the process).
+    """
+    if parallel is None:
+        parallel = n >= PARALLEL_MIN_PAIRS
+    if parallel and _threads["forked_after_omp"]:
+        if not _threads["warned"]:
+            _threads["warned"] = True
+            print("prismbatch: this process was forked after a parallel call under GNU OpenMP, which cannot "
+                  "start threads in a forked child; running serially (use the 'spawn' start method, or "
+                  "`pip install tbb` with NUMBA_THREADING_LAYER=tbb, for parallel children)", file=sys.stderr)
+        return False
+    if parallel:
+        _threads["used"] = True
+    return bool(parallel)
+
 
 def run(a_arrays, b_arrays, pos_a, rot_a, pos_b, rot_b, n, rtol, atol,
         want_contact, parallel):
     """Allocate outputs and call the serial or parallel kernel (None: by batch size)."""
-    if parallel is None:
-        parallel = n >= PARALLEL_MIN_PAIRS
+    parallel = use_parallel(parallel, n)
     hit = np.empty(n, dtype=np.bool_)
     case = np.empty(n, dtype=np.int8)
     # A status-only call gets a (0, 3) placeholder: no memory, no writes.
@@ -159,8 +234,8 @@ def collide_pair(avx, avy, aeang, aetab, avang, ainv, aoff, arad, acen,
     nan = math.nan
     for k, P in enumerate((Pa, Pb)):
         for j in range(3):
-            if not math.isfinite(P[j]):
-                return 1 + 4 * k, nan, False, 0, nan, nan, nan
+            if not abs(P[j]) <= MAX_MAGNITUDE:  # also NaN
+                return 1 + 4 * k, P[j], False, 0, nan, nan, nan
     for k, R in enumerate((Ra, Rb)):
         _, kind, val = first_bad_rotation(R.reshape((1, 3, 3)), ortho_tol)
         if kind != 0:

@@ -96,6 +96,8 @@ def extreme_vertex(vx, vy, eang, etab, s, n, dx, dy):
     p0 = eang[s]
     off = (pseudo_angle(-dy, dx) - p0) % 4.0  # angle + pi/2, relative to edge 0
     target = p0 + off
+    if not off < 4.0:  # NaN direction (never from valid input): any vertex, but no wild index
+        off = 0.0
     b = int(off * n * 0.25)
     if b >= n:
         b = n - 1
@@ -107,7 +109,23 @@ def extreme_vertex(vx, vy, eang, etab, s, n, dx, dy):
             lo = mid + 1
         else:
             hi = mid
-    return lo % n
+    # The angles of short, nearly collinear edges carry rounding errors
+    # larger than their turns (a 4e-10 edge at radius 1 has angle error
+    # ~2e-7 rad), so the search can stop a few vertices short of the true
+    # maximiser. d.v is unimodal along a convex outline: climb to the peak.
+    k = lo % n
+    best = dx * vx[s + k] + dy * vy[s + k]
+    for step in (1, n - 1):
+        for _ in range(n):
+            j = k + step
+            if j >= n:
+                j -= n
+            val = dx * vx[s + j] + dy * vy[s + j]
+            if not val > best:
+                break
+            k = j
+            best = val
+    return k
 
 
 @njit(cache=True, inline="always")

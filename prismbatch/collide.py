@@ -9,6 +9,7 @@ import numpy as np
 
 from . import _batch
 from ._projection import CASES
+from .config import MAX_MAGNITUDE
 from .poses import ORTHO_TOL_F32, ORTHO_TOL_F64, as_pose, common_batch_size
 from .shapes import as_prism_set
 
@@ -144,10 +145,8 @@ class Collider:
         pb, rb = as_pose(pos_b, rot_b, quat_order=quat_order, name="b")
         n = common_batch_size(pa, ra, pb, rb, n_shapes=self._n_shapes)
         dt = self.dtype
-        pa = np.ascontiguousarray(pa.reshape(-1, 3), dtype=dt)
-        pb = np.ascontiguousarray(pb.reshape(-1, 3), dtype=dt)
-        ra = np.ascontiguousarray(ra.reshape(-1, 3, 3), dtype=dt)
-        rb = np.ascontiguousarray(rb.reshape(-1, 3, 3), dtype=dt)
+        pa, pb = _kernel_array(pa, (-1, 3), dt), _kernel_array(pb, (-1, 3), dt)
+        ra, rb = _kernel_array(ra, (-1, 3, 3), dt), _kernel_array(rb, (-1, 3, 3), dt)
         hit, case, cont = _batch.run(self._a, self._b, pa, ra, pb, rb, n,
                                      self.rtol, self.atol, bool(contact),
                                      None if parallel is None else bool(parallel))
@@ -222,23 +221,33 @@ class Collider:
 
     def _pair_array(self, x, shape, name):
         a = np.asarray(x)
-        if a.dtype != self.dtype or a.shape != shape or not a.flags.c_contiguous:
+        if a.dtype != self.dtype or a.shape != shape or not (a.flags.c_contiguous and a.flags.writeable):
             if a.dtype.kind not in "iuf":
                 raise TypeError(f"{name} must have a real numeric dtype, got {a.dtype}")
             if a.shape != shape:
                 raise ValueError(f"{name} has shape {a.shape}; collide_pair takes {shape} (use collide for "
                                  f"batches, quaternions or transforms)")
-            a = np.ascontiguousarray(a, dtype=self.dtype)
+            a = _kernel_array(a, shape, self.dtype)
         return a
+
+
+def _kernel_array(x, shape, dtype):
+    """``x`` as a C-contiguous, writeable array of ``dtype`` (copied only if needed).
+
+    Read-only inputs (``np.broadcast_to``, frozen arrays) are copied: Numba
+    types them apart, so passing them would compile every kernel again.
+    """
+    a = np.ascontiguousarray(np.reshape(x, shape), dtype=dtype)
+    return a if a.flags.writeable else a.copy()
 
 
 #: Problems reported by the one-pair path, by code (see Collider.collide_pair).
 PAIR_PROBLEMS = {
-    1: "pos_a contains non-finite values (NaN or inf)",
+    1: "pos_a has a coordinate {} outside the supported range |x| <= " + f"{MAX_MAGNITUDE:g} (NaN, inf or too large)",
     2: "rot_a contains non-finite values (NaN or inf)",
     3: "rot_a is not orthonormal: max |R^T R - I| = {:.3e}",
     4: "rot_a is a reflection (det = {:.6g}); a rotation must have det = +1",
-    5: "pos_b contains non-finite values (NaN or inf)",
+    5: "pos_b has a coordinate {} outside the supported range |x| <= " + f"{MAX_MAGNITUDE:g} (NaN, inf or too large)",
     6: "rot_b contains non-finite values (NaN or inf)",
     7: "rot_b is not orthonormal: max |R^T R - I| = {:.3e}",
     8: "rot_b is a reflection (det = {:.6g}); a rotation must have det = +1",

@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from ._planar import edge_search_tables
+from .config import MAX_MAGNITUDE, MIN_RADIUS
 
 __all__ = ["Prism", "PrismSet", "validate_polygon"]
 
@@ -62,24 +63,26 @@ def validate_polygon(xy, *, name="polygon"):
     bad = ~np.isfinite(arr).all(axis=1)
     if bad.any():
         raise ValueError(f"{name}: vertex {int(np.argmax(bad))} is not finite: {arr[np.argmax(bad)]}")
-    edges = np.roll(arr, -1, axis=0) - arr
-    elen = np.hypot(edges[:, 0], edges[:, 1])
-    scale = float(np.max(np.abs(arr - arr.mean(axis=0))))
-    if scale == 0.0:
+    # Judge the outline relative to itself: shifted to vertex 0 and scaled to
+    # unit size, so a polygon far from its origin, or of any size, is judged
+    # like the same polygon at unit scale.
+    rel, edges = _unit_scaled(arr)
+    if rel is None:
         raise ValueError(f"{name}: all {n} vertices coincide")
+    elen = np.hypot(edges[:, 0], edges[:, 1])
     # Repeated vertices: consecutive duplicates show as zero-length edges;
     # non-consecutive ones make the outline self-touching (caught below).
-    zero = elen <= 1e-14 * scale
+    zero = elen <= 1e-14
     if zero.any():
         k = int(np.argmax(zero))
         raise ValueError(f"{name}: vertex {(k + 1) % n} repeats vertex {k} (zero-length edge)")
-    area2 = float(np.sum(arr[:, 0] * np.roll(arr[:, 1], -1) - np.roll(arr[:, 0], -1) * arr[:, 1]))
-    if abs(area2) <= 1e-13 * scale * scale:
+    area2 = float(np.sum(rel[:, 0] * np.roll(rel[:, 1], -1) - np.roll(rel[:, 0], -1) * rel[:, 1]))
+    if abs(area2) <= 1e-13:
         raise ValueError(f"{name}: polygon has zero area (collinear vertices)")
     if area2 < 0.0:
         arr = np.ascontiguousarray(arr[::-1])
-        edges = np.roll(arr, -1, axis=0) - arr
-        elen = np.hypot(edges[:, 0], edges[:, 1])
+        edges = -np.roll(edges[::-1], -1, axis=0)
+        elen = np.roll(elen[::-1], -1)
     prev = np.roll(edges, 1, axis=0)
     cross = prev[:, 0] * edges[:, 1] - prev[:, 1] * edges[:, 0]
     dot = prev[:, 0] * edges[:, 0] + prev[:, 1] * edges[:, 1]
@@ -99,18 +102,43 @@ def validate_polygon(xy, *, name="polygon"):
     return arr
 
 
+def _unit_scaled(xy):
+    """Vertices relative to vertex 0 and edge vectors, scaled by powers of two to unit size.
+
+    Returns ``(rel, edges)``, or ``(None, None)`` if all points coincide.
+    Power-of-two scaling is exact, and the edges are differences of
+    neighbouring vertices taken before any shift (exact for nearby floats),
+    so short edges keep every bit whatever the polygon's size and offset;
+    products of the results neither overflow nor underflow.
+    """
+    big = float(np.max(np.abs(xy)))
+    if big == 0.0:
+        return None, None
+    u = np.ldexp(xy, -int(np.frexp(big)[1]))  # |u| < 1
+    edges = np.roll(u, -1, axis=0) - u
+    size = float(np.max(np.abs(edges)))
+    if size == 0.0:
+        return None, None
+    e = -int(np.frexp(size)[1])
+    return np.ldexp(u - u[0], e), np.ldexp(edges, e)
+
+
 def _centroid(ccw):
-    """Area centroid of a convex CCW polygon (strictly interior)."""
-    x, y = ccw[:, 0], ccw[:, 1]
-    # Shift first: keeps the shoelace sums well conditioned far from the origin.
-    x0, y0 = x.mean(), y.mean()
-    xs, ys = x - x0, y - y0
+    """Area centroid of a convex CCW polygon (strictly interior), at any size and offset."""
+    e0 = int(np.frexp(float(np.max(np.abs(ccw))))[1])
+    u = np.ldexp(ccw, -e0)
+    u0 = u[0].copy()
+    u = u - u0
+    e1 = int(np.frexp(float(np.max(np.abs(u))))[1])
+    xs, ys = np.ldexp(u[:, 0], -e1), np.ldexp(u[:, 1], -e1)
+    # Shift to the mean too: keeps the shoelace sums well conditioned.
+    x0, y0 = xs.mean(), ys.mean()
+    xs, ys = xs - x0, ys - y0
     xn, yn = np.roll(xs, -1), np.roll(ys, -1)
     cr = xs * yn - xn * ys
     a = cr.sum() / 2.0
-    cx = ((xs + xn) * cr).sum() / (6.0 * a)
-    cy = ((ys + yn) * cr).sum() / (6.0 * a)
-    return np.array([cx + x0, cy + y0])
+    c = np.array([((xs + xn) * cr).sum() / (6.0 * a) + x0, ((ys + yn) * cr).sum() / (6.0 * a) + y0])
+    return np.ldexp(np.ldexp(c, e1) + u0, e0)
 
 
 def _kernel_data(ccw, centre):
@@ -121,10 +149,12 @@ def _kernel_data(ccw, centre):
     eang = np.empty(len(v))
     etab = np.empty(len(v), dtype=np.int64)
     edge_search_tables(np.ascontiguousarray(v[:, 0]), np.ascontiguousarray(v[:, 1]), eang, etab)
-    # Polar angle of each vertex about the centre, unwrapped to increase.
+    # Polar angle of each vertex about the centre, unwrapped to increase
+    # (from unit-scaled copies: angles do not depend on size, products might overflow).
+    u = np.ldexp(v, -int(np.frexp(float(np.max(np.abs(v))))[1]))
     step = np.arctan2(
-        np.roll(v[:, 0], 1) * v[:, 1] - np.roll(v[:, 1], 1) * v[:, 0],
-        np.roll(v[:, 0], 1) * v[:, 0] + np.roll(v[:, 1], 1) * v[:, 1],
+        np.roll(u[:, 0], 1) * u[:, 1] - np.roll(u[:, 1], 1) * u[:, 0],
+        np.roll(u[:, 0], 1) * u[:, 0] + np.roll(u[:, 1], 1) * u[:, 1],
     )
     vang = np.arctan2(v[0, 1], v[0, 0]) + np.concatenate(([0.0], np.cumsum(step[1:])))
     radius = float(np.max(np.hypot(v[:, 0], v[:, 1])))
@@ -274,11 +304,27 @@ class PrismSet:
 def as_prism_set(shape, name):
     """Return ``(PrismSet, per_pair)`` for a Prism or PrismSet argument."""
     if isinstance(shape, PrismSet):
-        return shape, True
-    if isinstance(shape, Prism):
-        cached = getattr(shape, "_as_set", None)
-        if cached is None:
-            cached = PrismSet([shape])
-            shape._as_set = cached
-        return cached, False
-    raise TypeError(f"{name} must be a prismbatch.Prism or PrismSet, got {type(shape).__name__}")
+        pset, per_pair = shape, True
+    elif isinstance(shape, Prism):
+        pset = getattr(shape, "_as_set", None)
+        if pset is None:
+            pset = PrismSet([shape])
+            shape._as_set = pset
+        per_pair = False
+    else:
+        raise TypeError(f"{name} must be a prismbatch.Prism or PrismSet, got {type(shape).__name__}")
+    _check_kernel_range(pset, name if not per_pair else f"{name} (PrismSet)")
+    return pset, per_pair
+
+
+def _check_kernel_range(pset, name):
+    """Raise ValueError if a polygon's size or offset is outside the range the kernels support."""
+    small = pset.radius < MIN_RADIUS
+    large = (pset.radius > MAX_MAGNITUDE) | (np.abs(pset.centre).max(axis=1) > MAX_MAGNITUDE)
+    if small.any() or large.any():
+        k = int(np.argmax(small | large))
+        raise ValueError(
+            f"{name}: polygon {k} (radius {pset.radius[k]:.3g}, centre {pset.centre[k].tolist()}) is outside "
+            f"the supported range: radius in [{MIN_RADIUS:g}, {MAX_MAGNITUDE:g}] and |centre| <= "
+            f"{MAX_MAGNITUDE:g}; rescale the units"
+        )

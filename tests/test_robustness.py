@@ -1,0 +1,177 @@
+"""Exactness and robustness regressions: identical and nearly identical rotations,
+dense nearly collinear polygons, the supported magnitude range, polygons judged
+relative to themselves, read-only inputs, and a fork after a parallel call.
+
+The two saved cases in ``tests/data`` were found by an independent exact check
+(rational arithmetic on the exact float inputs); their verdicts are stored with
+them. Every other expectation here is known in closed form.
+"""
+
+import json
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+import prismbatch as pb
+from prismbatch.config import MAX_MAGNITUDE
+
+DATA = Path(__file__).resolve().parent / "data"
+SQUARE = pb.Prism([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
+
+
+def _load_case(name):
+    d = json.loads((DATA / f"{name}.json").read_text())
+    h = float.fromhex
+    arr = lambda key, shape: np.array([h(x) for x in np.ravel(d[key])]).reshape(shape)  # noqa: E731
+    case = dict(xa=arr("xy_a", (-1, 2)), xb=arr("xy_b", (-1, 2)), pa=arr("pos_a", (3,)), pb=arr("pos_b", (3,)),
+                ra=arr("rot_a", (3, 3)), rb=arr("rot_b", (3, 3)), verdict=d["exact"]["verdict"])
+    if d.get("quat_a") is not None:
+        case.update(qa=arr("quat_a", (4,)), qb=arr("quat_b", (4,)), order=d["quat_order"])
+    return case
+
+
+@pytest.mark.parametrize("name", ["same_rotation_side_by_side", "dense_nearly_collinear_miss"])
+def test_saved_exact_verdicts(name):
+    c = _load_case(name)
+    A, B = pb.Prism(c["xa"]), pb.Prism(c["xb"])
+    want = c["verdict"] == "hit"
+    col = pb.Collider(A, B)
+    assert col.collide_pair(c["pa"], c["ra"], c["pb"], c["rb"]).hit == want
+    assert col.explain(c["pa"], c["ra"], c["pb"], c["rb"])["hit"] == want
+    r = pb.collide(A, B, c["pa"][None], c["ra"][None], c["pb"][None], c["rb"][None], contact=True)
+    assert r.hit[0] == want
+    if "qa" in c:  # the call that was wrong was made with quaternions
+        rq = pb.collide(A, B, c["pa"], c["qa"], c["pb"], c["qb"], quat_order=c["order"])
+        assert rq.hit[0] == want
+
+
+@pytest.mark.parametrize("gap", [1e-3, 0.1, 2.0])
+def test_identical_rotations_side_by_side_never_hit(gap):
+    # Same rotation matrix, a clear lateral gap: parallel axes, a miss whatever
+    # the rounding noise of R_a^T R_b (it once swept b along that noise).
+    R = Rotation.random(300, random_state=1).as_matrix()
+    p = np.random.default_rng(2).normal(size=(300, 3))
+    q = p + np.einsum("nij,j->ni", R, [2.0 + gap, 0.0, 0.0])
+    r = pb.collide(SQUARE, SQUARE, p, R, q, R)
+    assert not r.hit.any()
+    # ... and the same pairs moved to touching, or overlapping, all hit.
+    for shift in (2.0, 1.5):
+        q = p + np.einsum("nij,j->ni", R, [shift, 0.0, 0.0])
+        assert pb.collide(SQUARE, SQUARE, p, R, q, R).hit.all()
+
+
+@pytest.mark.parametrize("theta", [0.0, 1e-16, 1e-15, 1e-12, 1e-9, 1e-6])
+def test_tiny_tilts_follow_their_direction(theta):
+    # b beside a (gap 0.1 along x), both bodies along +z; b's axis tilted by
+    # theta in x. The matrices are exact as written (cos theta rounds to 1), so
+    # the exact bodies are known: tilted towards a they meet at t = 0.1 / theta
+    # (the prisms are semi-infinite), tilted away or about x they never do.
+    def tilt_x(s):  # axis (s, 0, 1)
+        return np.array([[1.0, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, 1.0]])
+
+    def tilt_y(s):  # axis (0, s, 1)
+        return np.array([[1.0, 0.0, 0.0], [0.0, 1.0, s], [0.0, -s, 1.0]])
+
+    col = pb.Collider(SQUARE, SQUARE)
+    pa, pb_ = np.zeros(3), np.array([2.1, 0.0, 0.0])
+    towards = col.collide_pair(pa, np.eye(3), pb_, tilt_x(-theta)).hit
+    away = col.collide_pair(pa, np.eye(3), pb_, tilt_x(theta)).hit
+    sideways = col.collide_pair(pa, np.eye(3), pb_, tilt_y(theta)).hit
+    assert towards == (theta > 0.0)
+    assert not away
+    assert not sideways
+    # The same pairs seen from b (a tilted the other way) agree.
+    assert col.collide_pair(pb_, tilt_x(-theta), pa, np.eye(3)).hit == (theta > 0.0)
+
+
+def test_magnitudes_inside_the_range_are_scale_free():
+    # The same scene at scales 1e-12 ... 1e12 and shifted far from the origin
+    # gives the same answers (the scene is exact at every power of two scale).
+    rng = np.random.default_rng(3)
+    R = Rotation.random(400, random_state=4).as_matrix()
+    q = rng.uniform(-3, 3, size=(400, 3))
+    base = pb.collide(SQUARE, SQUARE, np.zeros(3), np.eye(3), q, R).hit
+    for e in (-40, -20, 20, 40):
+        s = 2.0 ** e
+        sq = pb.Prism(SQUARE.xy * s)
+        assert (pb.collide(sq, sq, np.zeros(3), np.eye(3), q * s, R).hit == base).all()
+
+
+@pytest.mark.parametrize("bad", [1e308, -1.7e308, 2 * MAX_MAGNITUDE, np.inf, np.nan])
+def test_positions_outside_the_range_raise(bad):
+    a, b = pb.Prism.regular(5, 2.0), pb.Prism.regular(6, 2.5)
+    down = np.diag([1.0, -1.0, -1.0])
+    col = pb.Collider(a, b)
+    for call in (lambda: pb.collide(a, b, [bad, 0, 0], down, [-1e308, 0, 0], np.eye(3)),
+                 lambda: pb.collide(a, b, np.array([[0, 0, bad]] * 5), down, np.zeros(3), np.eye(3)),
+                 lambda: col.collide_pair(np.array([bad, 0, 0]), down, np.zeros(3), np.eye(3)),
+                 lambda: col.explain(np.zeros(3), down, np.array([0, 0, bad]), np.eye(3))):
+        with pytest.raises(ValueError, match="pos_"):
+            call()
+
+
+def test_polygons_outside_the_range_raise_at_collide():
+    for r in (1e200, 1e-200):
+        p = pb.Prism.regular(5, r)  # a valid polygon ...
+        with pytest.raises(ValueError, match="supported range"):  # ... that the kernels cannot take
+            pb.collide(p, p, np.zeros(3), np.eye(3), np.zeros(3), np.eye(3))
+
+
+def test_valid_polygons_far_away_or_of_any_size_are_accepted():
+    tri = pb.Prism([[1e12, 1e12], [1e12 + 5, 1e12], [1e12, 1e12 + 5]])
+    assert np.allclose(tri.centre - 1e12, [5 / 3, 5 / 3], atol=1e-3)
+    far = pb.Prism.regular(27, 1, centre=(1e10, 1e10))
+    assert far.n_vertices == 27 and abs(far.radius - 1) < 1e-5
+    for r in (1e200, 1e-200, 1e-300):
+        p = pb.Prism.regular(5, r)
+        assert abs(p.radius / r - 1) < 1e-12 and np.all(np.abs(p.centre) < 1e-12 * r)
+    # Real defects are still rejected at every scale.
+    for s in (1e-200, 1.0, 1e200):
+        with pytest.raises(ValueError, match="not convex"):
+            pb.Prism(np.array([[0, 0], [2, 0], [1, 0.2], [2, 2], [0, 2]]) * s)
+        with pytest.raises(ValueError, match="zero area"):
+            pb.Prism(np.array([[0, 0], [1, 1], [2, 2]]) * s + 1e10 * s)
+
+
+def test_read_only_inputs_are_accepted_everywhere():
+    a, b = pb.Prism.regular(5, 2.0), pb.Prism.regular(6, 2.5)
+    pos = np.array([0.3, 0.1, 0.0])
+    pos.flags.writeable = False
+    rot = np.broadcast_to(np.diag([1.0, -1.0, -1.0]), (3, 3))
+    pb_ = np.array([0.0, 0.0, 0.5])
+    col = pb.Collider(a, b)
+    want = col.collide_pair(pos.copy(), rot.copy(), pb_, np.eye(3))
+    assert want.hit
+    assert col.collide_pair(pos, rot, pb_, np.eye(3)).hit == want.hit
+    assert col.explain(pos, rot, pb_, np.eye(3))["hit"] == want.hit
+    assert pb.collide(a, b, pos, rot, pb_, np.eye(3)).hit[0] == want.hit
+    many = np.broadcast_to(pos, (10, 3))
+    assert pb.collide(a, b, many, rot, pb_, np.eye(3)).hit.all()
+
+
+def test_fork_after_a_parallel_call_gives_working_children(tmp_path):
+    script = tmp_path / "fork_pool.py"
+    script.write_text(textwrap.dedent("""
+        import multiprocessing as mp
+        import numpy as np
+        import prismbatch as pb
+        a, b = pb.Prism.regular(5, 2.0), pb.Prism.regular(6, 2.5)
+        P = np.random.default_rng(0).normal(size=(5000, 3))
+        def work(_):
+            return int(pb.collide(a, b, np.zeros(3), np.eye(3), P, np.eye(3), parallel=True).hit.sum())
+        if __name__ == "__main__":
+            first = work(0)
+            with mp.get_context("fork").Pool(2) as pool:
+                print(first, pool.map(work, range(3)))
+    """))
+    out = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=600,
+                         env=dict(os.environ))
+    assert out.returncode == 0, out.stderr
+    first, rest = out.stdout.split(" ", 1)
+    assert json.loads(rest) == [int(first)] * 3
