@@ -49,32 +49,41 @@ def pseudo_angle(x, y):
 
 
 @njit(cache=True)
-def edge_search_tables(vx, vy, out_ang, out_tab):
+def edge_search_tables(ex, ey, out_ang, out_tab):
     """Unwrapped edge pseudo-angles and bucket table of one CCW polygon.
 
-    out_ang[k]: pseudo-angle of edge v_k -> v_{k+1}, unwrapped to increase.
+    ``ex, ey``: the edge vectors v_{k+1} - v_k, taken from the polygon as
+    given (differences of neighbouring floats are exact), not from vertices
+    shifted to the centre: on short, nearly collinear edges that rounding
+    exceeds the turns and misorders the angles (the extreme-vertex search
+    then stops vertices short of the maximiser).
+    out_ang[k]: pseudo-angle of edge k, unwrapped to increase by whole turns
+    (no running sum, so no drift over thousands of edges); a rounding-level
+    backward turn counts as no turn.
     out_tab[b]: number of edges whose angle offset from edge 0 is below
     4 b / n (n buckets of equal pseudo-angle width), so the extreme-vertex
     search only scans one bucket (O(1) for evenly spread edges).
     """
-    n = vx.shape[0]
+    n = ex.shape[0]
     if n == 1:
         out_ang[0] = 0.0
         out_tab[0] = 0
         return
-    # Unwrap by increments: a convex turn is below a half turn (2 in
-    # pseudo-angle); an increment above 2 is a rounding-level backward turn
-    # of nearly collinear edges, and counts as no turn.
-    prev_raw = pseudo_angle(vx[1] - vx[0], vy[1] - vy[0])
-    out_ang[0] = prev_raw
-    for k in range(1, n):
-        k1 = k + 1 if k + 1 < n else 0
-        a = pseudo_angle(vx[k1] - vx[k], vy[k1] - vy[k])
-        inc = (a - prev_raw) % 4.0
-        if inc > 2.0:
-            inc = 0.0
-        out_ang[k] = out_ang[k - 1] + inc
-        prev_raw = a
+    prev = pseudo_angle(ex[0], ey[0])
+    out_ang[0] = prev
+    if n == 2:  # a segment: its two edges are exactly a half turn apart
+        out_ang[1] = prev + 2.0
+    turns = 0.0
+    for k in range(1, n if n > 2 else 0):
+        a = pseudo_angle(ex[k], ey[k])
+        # A convex turn is below a half turn (2): a larger jump is the seam
+        # at 4 -> 0 (forward), or a tiny backward turn across it.
+        if a < prev - 2.0:
+            turns += 4.0
+        elif a > prev + 2.0:
+            turns -= 4.0
+        out_ang[k] = max(a + turns, out_ang[k - 1])
+        prev = a
     j = 0
     for b in range(n):
         edge = 4.0 * b / n
@@ -96,7 +105,7 @@ def extreme_vertex(vx, vy, eang, etab, s, n, dx, dy):
     p0 = eang[s]
     off = (pseudo_angle(-dy, dx) - p0) % 4.0  # angle + pi/2, relative to edge 0
     target = p0 + off
-    if not off < 4.0:  # NaN direction (never from valid input): any vertex, but no wild index
+    if not off >= 0.0:  # NaN direction (never from valid input): any vertex, but no wild index
         off = 0.0
     b = int(off * n * 0.25)
     if b >= n:
@@ -109,23 +118,7 @@ def extreme_vertex(vx, vy, eang, etab, s, n, dx, dy):
             lo = mid + 1
         else:
             hi = mid
-    # The angles of short, nearly collinear edges carry rounding errors
-    # larger than their turns (a 4e-10 edge at radius 1 has angle error
-    # ~2e-7 rad), so the search can stop a few vertices short of the true
-    # maximiser. d.v is unimodal along a convex outline: climb to the peak.
-    k = lo % n
-    best = dx * vx[s + k] + dy * vy[s + k]
-    for step in (1, n - 1):
-        for _ in range(n):
-            j = k + step
-            if j >= n:
-                j -= n
-            val = dx * vx[s + j] + dy * vy[s + j]
-            if not val > best:
-                break
-            k = j
-            best = val
-    return k
+    return lo % n
 
 
 @njit(cache=True, inline="always")

@@ -59,7 +59,8 @@ def _run(prism, pset, pts, w, tol, poly_b=None):
         gy = np.ascontiguousarray(g[:, 1])
         geang = np.empty(len(g))
         getab = np.empty(len(g), dtype=np.int64)
-        edge_search_tables(gx, gy, geang, getab)  # a 1- or 2-vertex "polygon"
+        ge = np.roll(g, -1, axis=0) - g
+        edge_search_tables(np.ascontiguousarray(ge[:, 0]), np.ascontiguousarray(ge[:, 1]), geang, getab)  # 1 or 2 points
         reach_pts = g
     wx, wy, T = 0.0, 0.0, 0.0
     if w is not None:

@@ -148,7 +148,8 @@ def _kernel_data(ccw, centre):
     elen = np.hypot(e[:, 0], e[:, 1])
     eang = np.empty(len(v))
     etab = np.empty(len(v), dtype=np.int64)
-    edge_search_tables(np.ascontiguousarray(v[:, 0]), np.ascontiguousarray(v[:, 1]), eang, etab)
+    exact_edges = np.roll(ccw, -1, axis=0) - ccw
+    edge_search_tables(np.ascontiguousarray(exact_edges[:, 0]), np.ascontiguousarray(exact_edges[:, 1]), eang, etab)
     # Polar angle of each vertex about the centre, unwrapped to increase
     # (from unit-scaled copies: angles do not depend on size, products might overflow).
     u = np.ldexp(v, -int(np.frexp(float(np.max(np.abs(v))))[1]))

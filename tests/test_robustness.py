@@ -144,7 +144,7 @@ def test_read_only_inputs_are_accepted_everywhere():
     pos = np.array([0.3, 0.1, 0.0])
     pos.flags.writeable = False
     rot = np.broadcast_to(np.diag([1.0, -1.0, -1.0]), (3, 3))
-    pb_ = np.array([0.0, 0.0, 0.5])
+    pb_ = np.array([0.0, 0.0, -0.5])  # b pushed up into a
     col = pb.Collider(a, b)
     want = col.collide_pair(pos.copy(), rot.copy(), pb_, np.eye(3))
     assert want.hit
