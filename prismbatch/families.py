@@ -36,7 +36,9 @@ class PairSet(NamedTuple):
     ``form == "quat"`` the exact reference uses the quaternions instead);
     ``call_a``/``call_b`` are the rotation arguments as the user passes them
     (matrices, quaternions, (N, 4, 4) transforms with ``pos`` unused, or a
-    scipy ``Rotation``); ``target`` the intended gap / tol (NaN: free pose).
+    scipy ``Rotation``); ``target`` the gap / tol of a near-touching pair
+    placed with a separating plane (up to the rounding of the placement),
+    inf where placed without one, NaN for a free pose.
     """
 
     family: str
@@ -177,7 +179,9 @@ def _place_near_touching(xy_a, pos_a, rot_a, xy_b, pos_b, rot_b, gap_over_tol, r
     new_b = pos_b + (sa - sb)
     A, B = Prism(xy_a), Prism(xy_b)
     _, tol = pair_scale_tolerance(A, B, pos_a[None], rot_a[None], new_b[None], rot_b[None])
-    return new_b + gap_over_tol * tol[0] * nrm
+    # The gap is known by construction only where neither body runs off along -n / +n.
+    known = nrm @ da <= 0 and nrm @ db >= 0
+    return new_b + gap_over_tol * tol[0] * nrm, known
 
 
 # --- families ---------------------------------------------------------------
@@ -199,7 +203,8 @@ def _scene(rng, n, *, kinds=("regular", "random"), radius=(0.5, 3.0), spread=3.0
         g = np.nan
         if rng.uniform() < near_share:
             g = float(rng.choice(TARGET_GAPS))
-            p_b = _place_near_touching(A, p_a, rots[0][k], B, p_b, rots[1][k], g, rng)
+            p_b, known = _place_near_touching(A, p_a, rots[0][k], B, p_b, rots[1][k], g, rng)
+            g = g if known else np.inf
         xa.append(A)
         xb.append(B)
         pa.append(p_a)

@@ -75,3 +75,29 @@ def test_rotation_forms_equal_matrices(name, seed):
         ra, rb = ps.rot_a, ps.rot_b
     as_matrices = pb.collide(A, B, ps.pos_a, ra, ps.pos_b, rb)
     np.testing.assert_array_equal(as_given.hit, as_matrices.hit)
+
+
+@SETTINGS
+@given(name=st.sampled_from(sorted(FAMILIES)), seed=st.integers(0, 2**31 - 1))
+def test_near_touching_pairs_with_a_known_gap(name, seed):
+    """Pairs placed at g tol along a separating plane: g <= 1 must hit, g > 2 must miss.
+
+    The placement rounds positions by about eps |p|; pairs whose gap lies within
+    that (times 16) of tol or 2 tol are left out.
+    """
+    from prismbatch.collide import pair_scale_tolerance
+    from prismbatch.families import collide_family
+
+    ps = make_family(name, 64, seed)
+    r = collide_family(ps)
+    known = np.flatnonzero(np.isfinite(ps.target))
+    for k in known:
+        A, B = pb.Prism(ps.xy_a[k]), pb.Prism(ps.xy_b[k])
+        _, tol = pair_scale_tolerance(A, B, ps.pos_a[k:k + 1], ps.rot_a[k:k + 1], ps.pos_b[k:k + 1], ps.rot_b[k:k + 1])
+        slack = 16 * np.finfo(float).eps * (np.abs(ps.pos_a[k]).max() + np.abs(ps.pos_b[k]).max()
+                                            + A.radius + B.radius + np.abs(ps.xy_a[k]).max() + np.abs(ps.xy_b[k]).max())
+        gap = ps.target[k] * tol[0]
+        if gap <= tol[0] - slack:
+            assert r.hit[k], (name, k, ps.target[k])
+        elif gap > 2 * tol[0] + slack:
+            assert not r.hit[k], (name, k, ps.target[k])
