@@ -1,0 +1,115 @@
+"""Self-tests of the exact reference (prismbatch.exact_gap) on cases with known answers.
+
+The reference decides every pair of the exactness checks, so it is checked
+here on its own: exactly representable scenes with a known gap (stacked,
+side by side with the same rotation, perpendicular axes), gaps of a fraction
+of tol on both sides of tol and 2 tol, the saved regression cases (their
+exact gaps were computed independently), invariances, and contact checks.
+"""
+
+import json
+from fractions import Fraction
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.spatial.transform import Rotation
+
+from prismbatch.exact_gap import check_contact, exact_quat_matrix, gap_bounds, judge_pair
+
+pytest.importorskip("highspy")
+
+DATA = Path(__file__).resolve().parent / "data"
+SQ = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
+DOWN = np.diag([1.0, -1.0, -1.0])  # a's body below its end face
+I3 = np.eye(3)
+
+
+def _exact_gap2(g):
+    assert g.hi is not None and g.lo == g.hi, g
+    return g.lo
+
+
+@pytest.mark.parametrize("h,gap", [(0.5, 0.5), (0.0, 0.0), (-0.25, 0.0), (2.0 ** -30, 2.0 ** -30)])
+def test_stacked_squares(h, gap):
+    # a's end face at z = 0 (body below), b's at z = h (body above), shifted sideways but overlapping.
+    g = gap_bounds(SQ, [0, 0, 0], DOWN, SQ, [0.375, 0.25, h], I3)
+    assert _exact_gap2(g) == Fraction(gap) ** 2
+
+
+def test_same_rotation_side_by_side_is_exactly_the_lateral_gap():
+    R = Rotation.from_euler("xyz", [0.3, -1.1, 2.0]).as_matrix()
+    p = np.array([0.5, -0.25, 2.0])
+    q = p + R @ np.array([2.125, 0.0, 0.0])  # gap 0.125 up to the rounding of R @ [...]
+    g = gap_bounds(SQ, p, R, SQ, q, R)
+    assert abs(float(_exact_gap2(g)) ** 0.5 - 0.125) < 1e-15
+    assert judge_pair(SQ, p, R, SQ, q, R, 1e-9).verdict == "miss"
+
+
+def test_perpendicular_axes_vertex_to_face():
+    # b lies on its side (axis along +x), its end face's vertex nearest to a's
+    # top face at height 1 + 2^-20 above a's end face plane z = 0 (a's body below).
+    Rb = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])  # axis x, local x -> -z
+    tri = np.array([[1.0, 0.0], [-1.0, 0.5], [-1.0, -0.5]])  # local x = 1 vertex maps to z = pz - 1
+    g = gap_bounds(SQ, [0, 0, 0], DOWN, tri, [0.0, 0.0, 1.0 + 2.0 ** -20], Rb)
+    assert _exact_gap2(g) == Fraction(2.0 ** -20) ** 2
+
+
+@pytest.mark.parametrize("frac,verdict", [(0.5, "hit"), (1.0, "hit"), (1.5, "band"), (2.0, "band"), (3.0, "miss")])
+def test_verdicts_around_tol(frac, verdict):
+    tol = 2.0 ** -24
+    j = judge_pair(SQ, [0, 0, 0], DOWN, SQ, [0.5, 0.5, frac * tol], I3, tol)
+    assert j.verdict == verdict
+    assert j.gap2_lo == Fraction(frac * tol) ** 2
+
+
+def _case(name):
+    d = json.loads((DATA / f"{name}.json").read_text())
+    h = float.fromhex
+    arr = lambda key, shape: np.array([h(x) for x in np.ravel(d[key])]).reshape(shape)  # noqa: E731
+    return d, arr
+
+
+def test_saved_same_rotation_case():
+    d, arr = _case("same_rotation_side_by_side")
+    g = gap_bounds(arr("xy_a", (-1, 2)), arr("pos_a", (3,)), arr("rot_a", (3, 3)),
+                   arr("xy_b", (-1, 2)), arr("pos_b", (3,)), arr("rot_b", (3, 3)))
+    assert float(_exact_gap2(g)) ** 0.5 == pytest.approx(d["exact"]["gap_lo"], rel=1e-15)
+
+
+def test_saved_dense_case_with_exact_quaternion_rotations():
+    d, arr = _case("dense_nearly_collinear_miss")
+    order = d["quat_order"]
+    ra, rb = exact_quat_matrix(arr("quat_a", (4,)), order), exact_quat_matrix(arr("quat_b", (4,)), order)
+    args = (arr("xy_a", (-1, 2)), arr("pos_a", (3,)), ra, arr("xy_b", (-1, 2)), arr("pos_b", (3,)), rb)
+    g = gap_bounds(*args)
+    assert float(_exact_gap2(g)) ** 0.5 == pytest.approx(d["exact"]["gap_lo"], rel=1e-12)
+    assert judge_pair(*args, float.fromhex(d["tol"])).verdict == "hit"
+
+
+def test_exact_quaternion_matrix_is_orthogonal():
+    R = exact_quat_matrix([0.3, -0.1, 0.7, 0.2], "wxyz")
+    for i in range(3):
+        for j in range(3):
+            assert sum(R[k][i] * R[k][j] for k in range(3)) == (1 if i == j else 0)
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), shift=st.tuples(*[st.integers(-64, 64)] * 3), swap=st.booleans())
+def test_invariant_under_exact_translation_and_swap(seed, shift, swap):
+    rng = np.random.default_rng(seed)
+    ra, rb = Rotation.random(2, random_state=seed).as_matrix()
+    pa, pb = rng.integers(-64, 64, 3) / 64.0, rng.integers(-64, 64, 3) / 64.0  # on a coarse grid
+    base = gap_bounds(SQ, pa, ra, SQ * 0.75, pb, rb)
+    t = np.array(shift, dtype=float) * 0.25  # exact: the shifted positions stay on the grid
+    moved = gap_bounds(SQ * 0.75, pb + t, rb, SQ, pa + t, ra) if swap else gap_bounds(SQ, pa + t, ra, SQ * 0.75, pb + t, rb)
+    assert (base.lo, base.hi) == (moved.lo, moved.hi)
+
+
+def test_check_contact():
+    args = (SQ, [0, 0, 0], DOWN, SQ, [0.5, 0.5, -0.5], I3)
+    assert check_contact(*args, [0.75, 0.75, -0.25], 1e-12) is True  # inside both
+    assert check_contact(*args, [0.75, 0.75, 0.25], 1e-3) is False  # 0.25 above a
+    assert check_contact(*args, [0.75, 0.75, 1e-4], 2e-4) is True  # within r of a's end face
