@@ -286,9 +286,12 @@ def _float_closest(A, B):
     the correction, scaled to the residual, with only the nearby edges.
     """
     M = np.column_stack([A.fR, -B.fR])
-    r = B.fp - A.fp
-    scale = max(np.abs(A.fxy).max(), np.abs(B.fxy).max(), np.linalg.norm(r), 1e-300)
-    rows = [(off, nrm / np.hypot(*nrm), o / np.hypot(*nrm)) for body, off in ((A, 0), (B, 3))
+    # Local coordinates about each polygon's mean: a polygon far from its own
+    # origin (vertices ~1e6, size 1) would cost the QP six digits.
+    ca, cb = A.fxy.mean(axis=0), B.fxy.mean(axis=0)
+    r = (B.fp + B.fR[:, :2] @ cb) - (A.fp + A.fR[:, :2] @ ca)
+    scale = max(np.abs(A.fxy - ca).max(), np.abs(B.fxy - cb).max(), np.linalg.norm(r), 1e-300)
+    rows = [(off, nrm / np.hypot(*nrm), (o - nrm @ c) / np.hypot(*nrm)) for body, off, c in ((A, 0, ca), (B, 3, cb))
             for nrm, o in zip(body.fnormal, body.foffset)]
     x = _qp(M, r, rows, np.zeros(6), scale)
     step = scale
@@ -298,7 +301,7 @@ def _float_closest(A, B):
         step = max(1e-3 * step, 1e-14 * scale, resid)
         near = [(off, nrm, o) for off, nrm, o in rows if o - nrm @ x[off:off + 2] <= 1e3 * step]
         x = _qp(M, r, near, x, step)
-    return x[:2], max(x[2], 0.0), x[3:5], max(x[5], 0.0), scale
+    return x[:2] + ca, max(x[2], 0.0), x[3:5] + cb, max(x[5], 0.0), scale
 
 
 def _verify(A, B, la, lb):
