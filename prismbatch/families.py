@@ -10,7 +10,7 @@ chosen gap of a fraction of the touching tolerance on both sides of it (from
 -0.5 tol, overlapping, to 10 tol), where errors of a collision test live.
 
 The generators only place pairs; the verdict comes from the exact reference
-(:mod:`prismbatch.exact_rational`). Needs numpy; the ``scipy`` family needs scipy.
+(:mod:`prismbatch.exact_gap`). Needs numpy; the ``scipy`` family needs scipy.
 """
 
 from __future__ import annotations
