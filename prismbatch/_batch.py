@@ -226,19 +226,19 @@ def run(a_arrays, b_arrays, pos_a, rot_a, pos_b, rot_b, n, rtol, atol,
 @njit(cache=True)
 def collide_pair(avx, avy, aeang, aetab, avang, ainv, aoff, arad, acen,
                  bvx, bvy, beang, betab, bvang, binv, boff, brad, bcen,
-                 Pa, Ra, Pb, Rb, rtol, atol, eps, ortho_tol):
+                 Pa, Ra, Pb, Rb, rtol, atol, eps, ortho_tol_a, ortho_tol_b):
     """One pair, with its input checks compiled in (the low-latency path).
 
     Returns (problem, value, hit, case, cx, cy, cz). ``problem`` 0 means the
     inputs are valid; otherwise it names the first bad input (see
-    collide.PAIR_PROBLEMS) and ``value`` gives the offending number.
+    collide._pair_problem) and ``value`` gives the offending number.
     """
     nan = math.nan
     for k, P in enumerate((Pa, Pb)):
         for j in range(3):
             if not abs(P[j]) <= MAX_MAGNITUDE:  # also NaN
                 return 1 + 4 * k, P[j], False, 0, nan, nan, nan
-    for k, R in enumerate((Ra, Rb)):
+    for k, (R, ortho_tol) in enumerate(((Ra, ortho_tol_a), (Rb, ortho_tol_b))):
         _, kind, val = first_bad_rotation(R.reshape((1, 3, 3)), ortho_tol)
         if kind != 0:
             return 1 + kind + 4 * k, val, False, 0, nan, nan, nan

@@ -10,7 +10,7 @@ import numpy as np
 from . import _batch
 from ._projection import CASES
 from .config import MAX_MAGNITUDE
-from .poses import ORTHO_TOL_F32, ORTHO_TOL_F64, as_pose, common_batch_size
+from .poses import ORTHO_HINT, as_pose, common_batch_size, ortho_tolerance
 from .shapes import as_prism_set
 
 __all__ = ["collide", "Collider", "CollisionResult", "PairResult", "CASES", "DEFAULT_RTOL", "pair_scale_tolerance"]
@@ -122,7 +122,8 @@ class Collider:
         self._a = set_a.kernel_arrays(dt)
         self._b = set_b.kernel_arrays(dt)
         self._eps = float(np.finfo(dt).eps)
-        self._ortho_tol = ORTHO_TOL_F64 if dt == np.float64 else ORTHO_TOL_F32
+        # Orthonormality tolerance by the input's dtype (the one rule of as_pose).
+        self._ortho_tols = {t: ortho_tolerance(t, dt) for t in (np.dtype(np.float64), np.dtype(np.float32))}
         self._n_shapes = None
         for per, s, nm in ((self._a_per, set_a, "shape_a"), (self._b_per, set_b, "shape_b")):
             if per:
@@ -141,8 +142,8 @@ class Collider:
             r = self.collide_pair(pos_a, rot_a, pos_b, rot_b)
             return CollisionResult(np.array([r.hit]), np.array([r.case], dtype=np.int8),
                                    r.contact[None, :].astype(self.dtype) if contact else None)
-        pa, ra = as_pose(pos_a, rot_a, quat_order=quat_order, name="a")
-        pb, rb = as_pose(pos_b, rot_b, quat_order=quat_order, name="b")
+        pa, ra = as_pose(pos_a, rot_a, quat_order=quat_order, name="a", dtype=self.dtype)
+        pb, rb = as_pose(pos_b, rot_b, quat_order=quat_order, name="b", dtype=self.dtype)
         n = common_batch_size(pa, ra, pb, rb, n_shapes=self._n_shapes)
         dt = self.dtype
         pa, pb = _kernel_array(pa, (-1, 3), dt), _kernel_array(pb, (-1, 3), dt)
@@ -174,10 +175,11 @@ class Collider:
             raise TypeError("collide_pair needs single Prism shapes, not PrismSets")
         f = self._pair_array
         Pa, Ra, Pb, Rb = f(pos_a, (3,), "pos_a"), f(rot_a, (3, 3), "rot_a"), f(pos_b, (3,), "pos_b"), f(rot_b, (3, 3), "rot_b")
+        ta, tb = self._ortho_tol(rot_a), self._ortho_tol(rot_b)
         problem, val, hit, case, cx, cy, cz = _batch.collide_pair(
-            *self._a, *self._b, Pa, Ra, Pb, Rb, self.rtol, self.atol, self._eps, self._ortho_tol)
+            *self._a, *self._b, Pa, Ra, Pb, Rb, self.rtol, self.atol, self._eps, ta, tb)
         if problem:
-            raise ValueError(PAIR_PROBLEMS[problem].format(val))
+            raise ValueError(_pair_problem(problem, val, ta if problem <= 4 else tb))
         return PairResult(bool(hit), int(case), np.array([cx, cy, cz]))
 
     def explain(self, pos_a, rot_a, pos_b, rot_b):
@@ -219,6 +221,16 @@ class Collider:
                 return False
         return True
 
+    def _ortho_tol(self, rot):
+        """:func:`~prismbatch.poses.ortho_tolerance` of the rotation's own dtype (cached per dtype)."""
+        dt = getattr(rot, "dtype", None)
+        tol = self._ortho_tols.get(dt)
+        if tol is None:
+            dt = np.asarray(rot).dtype
+            tol = ortho_tolerance(dt if dt.kind in "iuf" else np.float64, self.dtype)  # others fail later
+            self._ortho_tols[dt] = tol
+        return tol
+
     def _pair_array(self, x, shape, name):
         a = np.asarray(x)
         if a.dtype != self.dtype or a.shape != shape or not (a.flags.c_contiguous and a.flags.writeable):
@@ -241,17 +253,20 @@ def _kernel_array(x, shape, dtype):
     return a if a.flags.writeable else a.copy()
 
 
-#: Problems reported by the one-pair path, by code (see Collider.collide_pair).
-PAIR_PROBLEMS = {
-    1: "pos_a has a coordinate {} outside the supported range |x| <= " + f"{MAX_MAGNITUDE:g} (NaN, inf or too large)",
-    2: "rot_a contains non-finite values (NaN or inf)",
-    3: "rot_a is not orthonormal: max |R^T R - I| = {:.3e}",
-    4: "rot_a is a reflection (det = {:.6g}); a rotation must have det = +1",
-    5: "pos_b has a coordinate {} outside the supported range |x| <= " + f"{MAX_MAGNITUDE:g} (NaN, inf or too large)",
-    6: "rot_b contains non-finite values (NaN or inf)",
-    7: "rot_b is not orthonormal: max |R^T R - I| = {:.3e}",
-    8: "rot_b is a reflection (det = {:.6g}); a rotation must have det = +1",
-}
+def _pair_problem(code, val, ortho_tol):
+    """The message of a problem code of the one-pair kernel (the same words as :func:`as_pose`)."""
+    body, kind = "ab"[(code - 1) // 4], (code - 1) % 4  # codes 1-4 for a, 5-8 for b
+    name = ("pos_" if kind == 0 else "rot_") + body
+    if kind == 0:
+        if not np.isfinite(val):
+            return f"{name} contains non-finite values (NaN or inf)"
+        return (f"{name} has a coordinate {val:g} outside the supported range |x| <= {MAX_MAGNITUDE:g}; "
+                f"rescale the units")
+    if kind == 1:
+        return f"{name} contains non-finite values (NaN or inf)"
+    if kind == 2:
+        return f"{name} is not orthonormal: max |R^T R - I| = {val:.3e} > {ortho_tol:.3g}; {ORTHO_HINT}"
+    return f"{name} is a reflection (det = {val:.6g}); a rotation must have det = +1"
 
 
 class PairResult(NamedTuple):

@@ -33,7 +33,7 @@ from numba import njit, prange
 
 from ._batch import PARALLEL_MIN_PAIRS, _variant
 from ._planar import wedge_edge
-from .poses import as_pose, as_rotations, common_batch_size
+from .poses import _as_real_array, _where, as_pose, as_rotations, common_batch_size
 from .shapes import as_prism_set
 
 __all__ = ["detach", "DetachResult", "CONTACT_CLASSES"]
@@ -216,6 +216,46 @@ _detach_serial = njit(cache=True)(_variant(_detach_loop, "detach_serial"))
 _detach_parallel = njit(cache=True, parallel=True)(_variant(_detach_loop, "detach_parallel"))
 
 
+def _first_bad(ok):
+    """Index of the first False in 1-D ``ok``, or None if all are True."""
+    bad = np.flatnonzero(~ok)
+    return None if bad.size == 0 else int(bad[0])
+
+
+def _check_eps(eps):
+    """The gain as a float: a real scalar, finite and >= 0."""
+    e = _as_real_array(eps, "eps")
+    if e.ndim != 0:
+        raise ValueError(f"eps must be a scalar, got shape {e.shape}")
+    e = float(e)
+    if not (math.isfinite(e) and e >= 0.0):
+        raise ValueError(f"eps must be finite and >= 0, got {e}")
+    return e
+
+
+def _check_tol(tol, n):
+    """``tol`` as a (1,) or (n,) float64 array: a real scalar or one per pair, finite and >= 0."""
+    arr = _as_real_array(tol, "tol")
+    if arr.ndim > 1 or (arr.ndim == 1 and arr.shape[0] not in (1, n)):
+        raise ValueError(f"tol must be a scalar or have shape ({n},) (one per pair), got shape {arr.shape}")
+    t = np.atleast_1d(arr.astype(np.float64))
+    i = _first_bad(np.isfinite(t) & (t >= 0.0))
+    if i is not None:
+        raise ValueError(f"{_where('tol', i if arr.ndim else None)} must be finite and >= 0, got {t[i]}")
+    return t
+
+
+def _force(eps, errn, direction):
+    """``eps * |state error| * direction``; ValueError naming the first contact where it is not finite."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        mag = eps * np.broadcast_to(errn, direction.shape[:1])
+    i = _first_bad(np.isfinite(mag) | np.isnan(direction[:, 0]))  # no contact: NaN force anyway
+    if i is not None:
+        raise ValueError(f"eps = {eps:g} gives pair {i} a non-finite force (eps * |state_error| = {mag[i]:g}); "
+                         f"eps times the state error's norm must be finite: lower eps or rescale the state error")
+    return mag[:, None] * direction  # NaN where there is no contact, as the direction
+
+
 @dataclass(frozen=True)
 class DetachResult:
     """Output of :func:`detach` for N pairs.
@@ -258,12 +298,15 @@ def detach(shape_a, contact, pos_a, rot_a, rot_b, state_error, *, eps=10.0, tol=
         (N, k) rows for N pairs, or (N,) norms; for a single pair (one
         contact row) a (k,) vector is that pair's error.
     eps : float, optional
-        The detach gain ε (the paper uses 10).
-    tol : float or array_like, optional
+        The detach gain ε (the paper uses 10): a real scalar, finite and
+        >= 0, and small enough that ``eps * |state error|`` is finite for
+        every pair in contact.
+    tol : float or array_like of shape (N,), optional
         Distance within which the contact counts as on a feature (vertex,
-        edge, face). Default: 1e-9 times a's end-face radius plus a
-        rounding floor; pass the pair tolerance of :func:`collide` or a
-        physical tolerance for simulated contacts.
+        edge, face): one value for every pair, or one per pair; finite and
+        >= 0. Default: 1e-9 times a's end-face radius plus a rounding
+        floor; pass the pair tolerance of :func:`collide` or a physical
+        tolerance for simulated contacts.
     parallel : bool or None, optional
         Spread pairs over Numba's threads; None (default) does so for large
         batches only (thread start-up costs more than small batches).
@@ -271,6 +314,17 @@ def detach(shape_a, contact, pos_a, rot_a, rot_b, state_error, *, eps=10.0, tol=
     Returns
     -------
     DetachResult
+
+    Raises
+    ------
+    TypeError
+        If ``eps`` or ``tol`` is not real numeric (a string, bool, object).
+    ValueError
+        If ``eps`` is not a scalar, negative, NaN or inf, or makes the
+        force of a contact non-finite (the message names the pair); if
+        ``tol`` is not a scalar or a length-N array, or is negative, NaN or
+        inf (the message names the first offending index); and on bad
+        poses, contacts, state errors or batch sizes.
     """
     set_a, per = as_prism_set(shape_a, "shape_a")
     pa, ra = as_pose(pos_a, rot_a, quat_order=quat_order, name="a")
@@ -294,15 +348,12 @@ def detach(shape_a, contact, pos_a, rot_a, rot_b, state_error, *, eps=10.0, tol=
     if len(c) not in (1, n) or len(errn) not in (1, n):
         raise ValueError(f"batch sizes do not match: contact has {len(c)} rows, state_error {len(errn)}, "
                          f"poses and shapes {n}")
-    if not (np.isfinite(eps) and eps >= 0):
-        raise ValueError(f"eps must be finite and >= 0, got {eps}")
+    eps = _check_eps(eps)
     if tol is None:
         tol_arr = 1e-9 * set_a.radius + 16 * np.finfo(np.float64).eps * (
             set_a.radius + np.abs(pa).max(initial=0.0))
     else:
-        tol_arr = np.atleast_1d(np.asarray(tol, dtype=np.float64))
-        if not np.all(np.isfinite(tol_arr) & (tol_arr >= 0)):
-            raise ValueError("tol must be finite and >= 0")
+        tol_arr = _check_tol(tol, n)
     cls = np.empty(n, dtype=np.int8)
     direction = np.empty((n, 3))
     depth = np.empty(n)
@@ -314,5 +365,5 @@ def detach(shape_a, contact, pos_a, rot_a, rot_b, state_error, *, eps=10.0, tol=
                    np.ascontiguousarray(pa.reshape(-1, 3)), np.ascontiguousarray(ra.reshape(-1, 3, 3)),
                    np.ascontiguousarray(rb.reshape(-1, 3, 3)), cc, np.ascontiguousarray(tol_arr), cls, direction,
                    depth)
-    force = (eps * np.broadcast_to(errn, (n,)))[:, None] * direction
+    force = _force(eps, errn, direction)
     return DetachResult(cls, direction, force, depth)

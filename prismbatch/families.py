@@ -179,9 +179,19 @@ def _place_near_touching(xy_a, pos_a, rot_a, xy_b, pos_b, rot_b, gap_over_tol, r
     new_b = pos_b + (sa - sb)
     A, B = Prism(xy_a), Prism(xy_b)
     _, tol = pair_scale_tolerance(A, B, pos_a[None], rot_a[None], new_b[None], rot_b[None])
-    # The gap is known by construction only where neither body runs off along -n / +n.
-    known = nrm @ da <= 0 and nrm @ db >= 0
+    # The gap is known by construction only where neither body runs off along
+    # -n / +n, judged exactly: an axis off by 1e-16 still crosses the plane
+    # (about 1e16 away), and semi-infinite bodies then meet there. Bitwise
+    # equal axes keep their distance whatever n.d is.
+    known = bool((da == db).all()) or (_exact_dot(nrm, da) <= 0 and _exact_dot(nrm, db) >= 0)
     return new_b + gap_over_tol * tol[0] * nrm, known
+
+
+def _exact_dot(u, v):
+    """Exact u . v of float vectors (as rationals)."""
+    from fractions import Fraction
+
+    return sum(Fraction(float(x)) * Fraction(float(y)) for x, y in zip(u, v))
 
 
 # --- families ---------------------------------------------------------------

@@ -21,7 +21,10 @@ import math
 import numpy as np
 from numba import njit
 
+from .config import MAX_MAGNITUDE
+
 __all__ = [
+    "ortho_tolerance",
     "as_rotations",
     "as_positions",
     "as_pose",
@@ -29,12 +32,22 @@ __all__ = [
     "relative_poses",
 ]
 
-# Tolerance on max |R^T R - I| for matrices given in double precision (or as
-# integers).  Tight, because a drifting rotation silently distorts geometry.
+# Floor of the tolerance on max |R^T R - I| per *compute* dtype; see
+# ortho_tolerance for the one rule that also accounts for the input's precision.
+# The kernels use the exact inverse of rot_a, so a slightly non-orthonormal
+# matrix is still an exact affine map: the check only guards against matrices
+# that are not rotations at all.
 ORTHO_TOL_F64 = 1e-9
-# Float32 input cannot be orthonormal to better than ~1e-7 per entry, so the
-# tolerance is relaxed when (and only when) the *input* is single precision.
 ORTHO_TOL_F32 = 1e-5
+ORTHO_TOL = {np.dtype(np.float64): ORTHO_TOL_F64, np.dtype(np.float32): ORTHO_TOL_F32}
+# Rounding of the input earns this many of its epsilons on top of the floor.
+ORTHO_EPS_FACTOR = 64
+#: How to fix a rotation that fails the check (appended to every such error).
+ORTHO_HINT = (
+    "re-orthonormalise it, e.g. with "
+    "scipy.spatial.transform.Rotation.from_matrix(R).as_matrix(), or pass "
+    "dtype=np.float32 if the data only has ~6 significant digits"
+)
 # Quaternions must already be unit length; we do not normalise behind the
 # user's back because an off-norm quaternion usually signals a bug upstream.
 QUAT_NORM_TOL = 1e-6
@@ -82,12 +95,38 @@ def _as_real_array(x, name: str) -> np.ndarray:
     return arr
 
 
-def _ortho_tol(input_dtype: np.dtype) -> float:
-    # Only low-precision float input earns the looser tolerance; integer
-    # matrices are exact, and float64/longdouble must meet the tight bound.
-    if input_dtype.kind == "f" and input_dtype.itemsize < 8:
-        return ORTHO_TOL_F32
-    return ORTHO_TOL_F64
+def ortho_tolerance(input_dtype, compute_dtype) -> float:
+    """Tolerance on max ``|R^T R - I|`` for rotation matrices: the one rule.
+
+    Parameters
+    ----------
+    input_dtype : numpy dtype
+        dtype of the matrices as the user passed them.  Integer (and bool)
+        input counts as float64: it is exact.
+    compute_dtype : {np.float64, np.float32}
+        Precision the collision test runs in.
+
+    Returns
+    -------
+    float
+        ``max(ORTHO_TOL[compute_dtype], 64 * finfo(input_dtype).eps)``:
+        1e-9 for float64 data under float64 compute, about 7.6e-6 for
+        float32 data under float64 compute, at least 1e-5 under float32
+        compute.
+
+    Raises
+    ------
+    TypeError
+        If ``compute_dtype`` is not float64/float32 or ``input_dtype`` is
+        not a real numeric dtype.
+    """
+    floor = ORTHO_TOL[_out_dtype(compute_dtype)]
+    dt = np.dtype(input_dtype)
+    if dt.kind in "biu":
+        dt = np.dtype(np.float64)
+    elif dt.kind != "f":
+        raise TypeError(f"input_dtype must be a real numeric dtype, got {dt}")
+    return max(floor, ORTHO_EPS_FACTOR * float(np.finfo(dt).eps))
 
 
 def _check_finite(a64: np.ndarray, name: str, batched: bool, what: str = "") -> None:
@@ -101,6 +140,24 @@ def _check_finite(a64: np.ndarray, name: str, batched: bool, what: str = "") -> 
             )
     elif not np.isfinite(a64).all():
         raise ValueError(f"{name}{what} contains non-finite values (NaN or inf)")
+
+
+def _check_positions(p64: np.ndarray, name: str, batched: bool, what: str = "") -> None:
+    """Raise naming the first position with a coordinate NaN, inf or beyond MAX_MAGNITUDE.
+
+    One pass: ``|x| <= MAX_MAGNITUDE`` is False for NaN too.
+    """
+    ok = np.abs(p64) <= MAX_MAGNITUDE
+    if ok.all():
+        return
+    rows = ok.reshape(p64.shape[0], -1).all(axis=1) if batched else ok.reshape(1, -1).all(axis=1)
+    i = int(np.flatnonzero(~rows)[0])
+    v = float(np.ravel(p64[i] if batched else p64)[np.flatnonzero(~np.ravel(ok[i] if batched else ok))[0]])
+    where = _where(name, i if batched else None) + what
+    if not math.isfinite(v):
+        raise ValueError(f"{where} contains non-finite values (NaN or inf)")
+    raise ValueError(f"{where} has a coordinate {v:g} outside the supported range |x| <= {MAX_MAGNITUDE:g}; "
+                     f"rescale the units")
 
 
 @njit(cache=True)
@@ -149,7 +206,9 @@ def _check_rotation_matrices(
     if kind == 1:
         raise ValueError(f"{where}{what} contains non-finite values (NaN or inf)")
     if kind == 2:
-        raise ValueError(f"{where}{what} is not orthonormal: max |R^T R - I| = {val:.3e} > {tol:.0e}")
+        raise ValueError(
+            f"{where}{what} is not orthonormal: max |R^T R - I| = {val:.3e} > {tol:.3g}; {ORTHO_HINT}"
+        )
     if kind == 3:
         raise ValueError(f"{where}{what} is a reflection (det = {val:.6g}); a rotation must have det = +1")
 
@@ -214,7 +273,9 @@ def as_rotations(rot, *, quat_order=None, name="rot", dtype=np.float64) -> np.nd
     name : str, optional
         Argument name used in error messages.
     dtype : {np.float64, np.float32}, optional
-        Output dtype.  Validation is always done in float64.
+        Output (compute) dtype.  Validation is done in float64; the
+        orthonormality tolerance is :func:`ortho_tolerance` of the input
+        dtype and this dtype.
 
     Returns
     -------
@@ -231,9 +292,9 @@ def as_rotations(rot, *, quat_order=None, name="rot", dtype=np.float64) -> np.nd
         On a wrong shape, a last dimension of 4 without ``quat_order``, an
         unknown ``quat_order``, a quaternion whose norm is not within 1e-6
         of 1, non-finite entries, a matrix that is not orthonormal (max
-        ``|R^T R - I|`` above 1e-9, or 1e-5 for float32 input), or a
-        reflection (det < 0).  Messages name ``name`` and the index of the
-        first offending rotation.
+        ``|R^T R - I|`` above :func:`ortho_tolerance`; the message says how
+        to fix it), or a reflection (det < 0).  Messages name ``name`` and
+        the index of the first offending rotation.
     """
     out_dt = _out_dtype(dtype)
     if quat_order is not None and quat_order not in _QUAT_ORDERS:
@@ -248,7 +309,7 @@ def as_rotations(rot, *, quat_order=None, name="rot", dtype=np.float64) -> np.nd
         if single and R64.ndim == 3 and R64.shape[0] == 1:  # defensive
             R64 = R64[0]
         batched = R64.ndim == 3
-        _check_rotation_matrices(R64, name, ORTHO_TOL_F64, batched)
+        _check_rotation_matrices(R64, name, ortho_tolerance(np.float64, out_dt), batched)
         return np.ascontiguousarray(R64, dtype=out_dt)
 
     arr = _as_real_array(rot, name)
@@ -281,8 +342,8 @@ def as_rotations(rot, *, quat_order=None, name="rot", dtype=np.float64) -> np.nd
         R64 = _quat_to_matrix(q64, quat_order)
         if not batched:
             R64 = R64[0]
-        # Cheap, and guards the conversion itself.
-        _check_rotation_matrices(R64, name, ORTHO_TOL_F64, batched)
+        # Cheap, and guards the conversion itself (done in float64).
+        _check_rotation_matrices(R64, name, ortho_tolerance(np.float64, out_dt), batched)
         return np.ascontiguousarray(R64, dtype=out_dt)
 
     if arr.ndim not in (2, 3) or shape[-2:] != (3, 3):
@@ -296,7 +357,7 @@ def as_rotations(rot, *, quat_order=None, name="rot", dtype=np.float64) -> np.nd
 
     batched = arr.ndim == 3
     R64 = np.asarray(arr, dtype=np.float64)
-    _check_rotation_matrices(R64, name, _ortho_tol(arr.dtype), batched)
+    _check_rotation_matrices(R64, name, ortho_tolerance(arr.dtype, out_dt), batched)
     return np.ascontiguousarray(R64, dtype=out_dt)
 
 
@@ -323,15 +384,16 @@ def as_positions(pos, *, name="pos", dtype=np.float64) -> np.ndarray:
         If the dtype is not integer or float, or ``dtype`` is not
         float64/float32.
     ValueError
-        On a wrong shape or non-finite entries (the message names ``name``
-        and the index of the first bad position).
+        On a wrong shape, non-finite entries or a coordinate beyond
+        :data:`~prismbatch.config.MAX_MAGNITUDE` (the message names
+        ``name`` and the index of the first bad position).
     """
     out_dt = _out_dtype(dtype)
     arr = _as_real_array(pos, name)
     if arr.ndim not in (1, 2) or arr.shape[-1] != 3:
         raise ValueError(f"{name} has shape {arr.shape}; expected (3,) or (N, 3)")
     p64 = np.asarray(arr, dtype=np.float64)
-    _check_finite(p64, name, arr.ndim == 2)
+    _check_positions(p64, name, arr.ndim == 2)
     return np.ascontiguousarray(p64, dtype=out_dt)
 
 
@@ -353,7 +415,9 @@ def as_pose(pos, rot=None, *, quat_order=None, name="a", dtype=np.float64):
         ``"pos_" + name``, rotations as ``"rot_" + name`` and transforms as
         ``"pose_" + name``.
     dtype : {np.float64, np.float32}, optional
-        Output dtype.  Validation is always done in float64.
+        Output (compute) dtype.  Validation is done in float64, with the
+        orthonormality tolerance :func:`ortho_tolerance` of the input dtype
+        and this dtype.
 
     Returns
     -------
@@ -391,6 +455,7 @@ def as_pose(pos, rot=None, *, quat_order=None, name="a", dtype=np.float64):
     batched = arr.ndim == 3
     T64 = np.asarray(arr, dtype=np.float64)
     _check_finite(T64, tname, batched)
+    _check_positions(T64[..., :3, 3], tname, batched, what=" translation")
     Tb = T64 if batched else T64[None]
     last_row = np.array([0.0, 0.0, 0.0, 1.0])
     row_err = np.abs(Tb[:, 3, :] - last_row).max(axis=1, initial=0.0)
@@ -403,7 +468,7 @@ def as_pose(pos, rot=None, *, quat_order=None, name="a", dtype=np.float64):
         )
     R64 = T64[..., :3, :3]
     _check_rotation_matrices(
-        R64, tname, _ortho_tol(arr.dtype), batched, what=" rotation block"
+        R64, tname, ortho_tolerance(arr.dtype, out_dt), batched, what=" rotation block"
     )
     p = np.ascontiguousarray(T64[..., :3, 3], dtype=out_dt)
     R = np.ascontiguousarray(R64, dtype=out_dt)

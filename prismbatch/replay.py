@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._report import run_metadata, write_json
+from ._report import jsonable, run_metadata, write_json
 
 __all__ = ["FORMAT", "VERSION", "REQUIRED_KEYS", "make_record", "write_replay", "read_replay",
            "replay_record", "format_trace", "replay"]
@@ -74,16 +74,111 @@ def make_record(kind, shape_a, shape_b, pos_a, rot_a, pos_b, rot_b, *, dtype="fl
     return rec
 
 
+#: Number arrays of a record and their shapes (None: any length >= 1).
+_ARRAYS = (("shape_a", (None, 2)), ("shape_b", (None, 2)), ("pos_a", (3,)), ("rot_a", (3, 3)),
+           ("pos_b", (3,)), ("rot_b", (3, 3)))
+#: Optional record fields printed in a trace's head line.
+_SHOWN = ("distribution", "block", "index", "seed", "spawn_key")
+_DTYPES = ("float64", "float32")
+
+
+def _text(x):
+    """``str(x)`` with every non-printable character (ANSI escapes, newlines, ...) escaped.
+
+    Text read from a replay file is untrusted: it is never printed raw.
+    """
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in str(x))
+
+
+def _json_type(x):
+    """What a JSON value is, for error messages (never the value itself)."""
+    if isinstance(x, bool):
+        return "a boolean"
+    if x is None:
+        return "null"
+    kinds = ((str, "a string"), (int, "an integer"), (float, "a number"), (list, "an array"), (dict, "an object"))
+    return next((name for t, name in kinds if isinstance(x, t)), type(x).__name__)
+
+
+def _expect(x, types, where, what):
+    """ValueError unless ``x`` is an instance of ``types`` (bool never counts as a number)."""
+    types = types if isinstance(types, tuple) else (types,)
+    if not isinstance(x, types) or (isinstance(x, bool) and bool not in types):
+        raise ValueError(f"{where} must be {what}, got {_json_type(x)}")
+    return x
+
+
+def _number(x, where, *, finite=True, null=False):
+    """A JSON number as a float (not bool, not a string); finite if asked; None if ``null`` allows it."""
+    if x is None and null:
+        return None
+    _expect(x, (int, float), where, "a number")
+    try:
+        v = float(x)
+    except OverflowError:  # an integer beyond the float range
+        v = math.inf
+    if finite and not math.isfinite(v):
+        raise ValueError(f"{where} must be a finite number, got {v}")
+    return v
+
+
+def _numbers(x, shape, where, **kw):
+    """Check nested JSON arrays of numbers of ``shape`` (None: any length >= 1); ``kw`` as :func:`_number`."""
+    if not shape:
+        return _number(x, where, **kw)
+    n = shape[0]
+    _expect(x, list, where, f"an array of length {n}" if n else "a non-empty array")
+    if len(x) != n if n else not x:
+        raise ValueError(f"{where} has length {len(x)}, expected {n if n else '>= 1'}")
+    for j, v in enumerate(x):
+        _numbers(v, shape[1:], f"{where}[{j}]", **kw)
+    return x
+
+
+def _scalar(x, where):
+    """A JSON string, number, boolean or null (a value shown as text)."""
+    if isinstance(x, (int, float)) and not isinstance(x, bool):
+        return _number(x, where, finite=False)
+    return _expect(x, (str, bool, type(None)), where, "a string, number, boolean or null")
+
+
 def _check_record(rec, where):
-    if not isinstance(rec, dict):
-        raise ValueError(f"{where}: a record must be a JSON object, got {type(rec).__name__}")
+    """ValueError naming ``where`` and the field unless ``rec`` follows the record schema."""
+    _expect(rec, dict, where, "a JSON object (a record)")
     missing = [k for k in REQUIRED_KEYS if k not in rec]
     if missing:
         raise ValueError(f"{where}: record lacks {', '.join(missing)}")
-    for k, shape in (("pos_a", (3,)), ("rot_a", (3, 3)), ("pos_b", (3,)), ("rot_b", (3, 3))):
-        a = np.asarray(rec[k], dtype=float)
-        if a.shape != shape:
-            raise ValueError(f"{where}: {k} has shape {a.shape}, expected {shape}")
+    _expect(rec["kind"], str, f"{where}: kind", "a string")
+    for k, shape in _ARRAYS:
+        _numbers(rec[k], shape, f"{where}: {k}")
+    if not isinstance(rec["dtype"], str) or rec["dtype"] not in _DTYPES:
+        raise ValueError(f"{where}: dtype must be \"float64\" or \"float32\", got {_short(rec['dtype'])}")
+    for k in ("rtol", "atol"):
+        v = _number(rec[k], f"{where}: {k}")
+        if v < 0:
+            raise ValueError(f"{where}: {k} must be >= 0, got {v:g}")
+    saved = _expect(rec["prismbatch"], dict, f"{where}: prismbatch", "a JSON object")
+    for k, t, what in (("hit", bool, "true or false"), ("case", int, "an integer")):
+        _expect(saved.get(k), t, f"{where}: prismbatch.{k}", what)
+    if saved.get("contact") is not None:
+        _numbers(saved["contact"], (3,), f"{where}: prismbatch.contact", finite=False, null=True)
+    refs = _expect(rec["references"], dict, f"{where}: references", "a JSON object")
+    for k, v in refs.items():
+        _scalar(v, f"{where}: references[{_text(repr(k))}]")
+    for k in _SHOWN:
+        if k in rec:
+            _check_shown(rec[k], f"{where}: {k}")
+
+
+def _check_shown(x, where):
+    """A scalar, or an array of scalars (e.g. spawn_key)."""
+    for j, v in enumerate(x if isinstance(x, list) else [x]):
+        _scalar(v, f"{where}[{j}]" if isinstance(x, list) else where)
+
+
+def _short(x):
+    """A short, safe rendering of a JSON value for error messages."""
+    return _json_type(x) if isinstance(x, (list, dict)) else _text(repr(x))[:60]
 
 
 def write_replay(path, records, meta=None):
@@ -94,7 +189,7 @@ def write_replay(path, records, meta=None):
     """
     records = list(records)
     for i, rec in enumerate(records):
-        _check_record(rec, f"record {i}")
+        _check_record(jsonable(rec), f"record {i}")  # as it will be written (NumPy scalars -> Python)
     doc = {"format": FORMAT, "version": VERSION, "meta": run_metadata(**(meta or {})), "records": records}
     return write_json(path, doc)
 
@@ -102,27 +197,42 @@ def write_replay(path, records, meta=None):
 def read_replay(path):
     """Read a replay file; returns ``(meta, records)``.
 
+    Every field is checked against the schema (see :func:`make_record`)
+    before anything uses it.
+
     Raises
     ------
     ValueError
-        If the file is not a prismbatch replay file or a record is malformed.
+        If the file is not JSON (or nested too deeply to parse), not a
+        prismbatch replay file, or a record or the meta data is malformed;
+        the message names the file, the record index and the field.
     """
-    path = Path(path)
-    try:
-        with open(path, encoding="utf-8") as f:
-            doc = json.load(f)
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"{path}: not JSON ({exc})") from exc
+    where = _text(path)
+    doc = _load_json(path, where)
     if not isinstance(doc, dict) or doc.get("format") != FORMAT:
-        raise ValueError(f"{path}: not a prismbatch replay file (no \"format\": \"{FORMAT}\")")
-    if doc.get("version") != VERSION:
-        raise ValueError(f"{path}: replay format version {doc.get('version')!r}; this prismbatch reads {VERSION}")
-    records = doc.get("records")
-    if not isinstance(records, list):
-        raise ValueError(f"{path}: \"records\" must be a list")
+        raise ValueError(f"{where}: not a prismbatch replay file (no \"format\": \"{FORMAT}\")")
+    version = doc.get("version")
+    if isinstance(version, bool) or version != VERSION:
+        raise ValueError(f"{where}: replay format version {_short(version)}; this prismbatch reads {VERSION}")
+    records = _expect(doc.get("records"), list, f"{where}: \"records\"", "a list")
     for i, rec in enumerate(records):
-        _check_record(rec, f"{path}: record {i}")
-    return doc.get("meta", {}), records
+        _check_record(rec, f"{where}: record {i}")
+    meta = _expect(doc.get("meta", {}), dict, f"{where}: \"meta\"", "a JSON object")
+    _scalar(meta.get("seed"), f"{where}: meta.seed")
+    versions = _expect(meta.get("versions", {}), dict, f"{where}: meta.versions", "a JSON object")
+    _scalar(versions.get("prismbatch"), f"{where}: meta.versions.prismbatch")
+    return meta, records
+
+
+def _load_json(path, where):
+    """``json.load`` of ``path``, with every parse failure a ValueError naming the file."""
+    try:
+        with open(Path(path), encoding="utf-8") as f:
+            return json.load(f)
+    except RecursionError:
+        raise ValueError(f"{where}: not a replay file: JSON nesting too deep") from None
+    except ValueError as exc:  # JSONDecodeError, UnicodeDecodeError, integers too long to convert
+        raise ValueError(f"{where}: not JSON ({_text(exc)})") from exc
 
 
 def replay_record(rec):
@@ -131,7 +241,8 @@ def replay_record(rec):
     from .shapes import Prism
 
     dt = np.dtype(rec["dtype"])
-    col = Collider(Prism(rec["shape_a"]), Prism(rec["shape_b"]), rtol=rec["rtol"], atol=rec["atol"], dtype=dt)
+    a, b = Prism(rec["shape_a"], name="shape_a"), Prism(rec["shape_b"], name="shape_b")
+    col = Collider(a, b, rtol=rec["rtol"], atol=rec["atol"], dtype=dt)
     arr = lambda k: np.asarray(rec[k], dtype=dt)  # noqa: E731
     return col.explain(arr("pos_a"), arr("rot_a"), arr("pos_b"), arr("rot_b"))
 
@@ -152,13 +263,14 @@ def format_trace(rec, e, *, number=None, total=None):
     from ._projection import CASES
 
     head = "record" + (f" {number}" if number is not None else "") + (f" of {total}" if total else "")
-    src = ", ".join(f"{k} {rec[k]}" for k in ("distribution", "block", "index", "seed", "spawn_key") if k in rec)
-    L = [f"{head}: {rec['kind']}" + (f" ({src})" if src else "")]
+    src = ", ".join(f"{k} {_text(rec[k])}" for k in _SHOWN if k in rec)
+    L = [f"{head}: {_text(rec['kind'])}" + (f" ({src})" if src else "")]
     na, nb = len(rec["shape_a"]), len(rec["shape_b"])
-    L.append(f"  shapes: a {na}-gon, b {nb}-gon; {rec['dtype']}, rtol {_g(rec['rtol'])}, atol {_g(rec['atol'])}")
+    L.append(f"  shapes: a {na}-gon, b {nb}-gon; {_text(rec['dtype'])}, rtol {_g(rec['rtol'])}, atol {_g(rec['atol'])}")
     saved = rec["prismbatch"]
     refs = rec.get("references") or {}
-    ref_txt = ", ".join(f"{k} {v if isinstance(v, (bool, str)) or v is None else _g(v)}" for k, v in refs.items())
+    ref_txt = ", ".join(f"{_text(k)} {_text(v) if isinstance(v, (bool, str)) or v is None else _g(v)}"
+                        for k, v in refs.items())
     L.append(f"  saved:    prismbatch hit={saved['hit']} case {saved['case']}" + (f"; references: {ref_txt}" if ref_txt else ""))
     same = (e["hit"] == saved["hit"]) and (e["case"] == saved["case"])
     L.append(f"  replayed: prismbatch hit={e['hit']} case {e['case']}"
@@ -228,13 +340,16 @@ def replay(path, *, out=print, indices=None):
     for i in chosen:
         if not 0 <= i < len(records):
             raise ValueError(f"record index {i} out of range: the file holds {len(records)} record(s)")
-    seed = meta.get("seed")
-    out(f"{path}: {len(records)} record(s)" + (f", run seed {seed}" if seed is not None else "")
-        + (f", written by prismbatch {meta['versions']['prismbatch']}" if "versions" in meta else ""))
+    seed, version = meta.get("seed"), meta.get("versions", {}).get("prismbatch")
+    out(f"{_text(path)}: {len(records)} record(s)" + (f", run seed {_text(seed)}" if seed is not None else "")
+        + (f", written by prismbatch {_text(version)}" if version is not None else ""))
     results = []
     for i in chosen:
         rec = records[i]
-        e = replay_record(rec)
+        try:
+            e = replay_record(rec)
+        except (ValueError, TypeError) as exc:  # polygons or poses the collision test rejects
+            raise ValueError(f"{_text(path)}: record {i}: {exc}") from exc
         e["same_as_saved"] = e["hit"] == rec["prismbatch"]["hit"] and e["case"] == rec["prismbatch"]["case"]
         for line in format_trace(rec, e, number=i, total=len(records)):
             out(line)

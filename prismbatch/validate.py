@@ -95,7 +95,8 @@ _CASE_COUNTERS = ("pairs_case", "hits_case", "fcl_in_band", "fcl_out_pb", "fcl_o
                   "fcl_unarbitrated", "lp_band", "lp_in_band", "lp_out")
 _INT_COUNTERS = ("pairs", "hits", "fcl_pairs", "lp_pairs", "lp_arbitration", "lp_failed", "standin_checked",
                  "standin_short", "standin_unsound", "contact_checked", "contact_invalid", "nonfinite",
-                 "bad_case", "status_mismatch", "degenerate_substituted", "near_contact_unseparated")
+                 "bad_case", "status_mismatch", "degenerate_substituted", "near_contact_unseparated",
+                 "exact_pairs", "exact_wrong", "exact_band", "exact_unknown")
 _MAX_COUNTERS = ("contact_max_ratio", "standin_max_dev")
 _TIMES = ("gen", "pb", "pb_contact", "fcl", "fcl_setup", "lp", "check")
 
@@ -535,6 +536,10 @@ def _process_block(cfg, distribution, block, threads=None):
     if meet.size:
         c["standin_max_dev"] = float(np.max(np.abs(lp_fin[meet] - lp[meet]) / S[meet]))
 
+    # The LP is not certain inside its band: there the exact reference judges
+    # the pair at tol itself (gap <= tol must hit, gap > 2 tol must miss).
+    exact = _exact_verdicts(blk, sa, sb, tol, np.union1d(lp_idx, dis)[
+        np.abs(lp[np.union1d(lp_idx, dis)]) <= band[np.union1d(lp_idx, dis)]], c)
     fault = {}
     # LP subsample: confusion and disagreements
     ok = lp_idx[np.isfinite(lp[lp_idx])]
@@ -550,7 +555,12 @@ def _process_block(cfg, distribution, block, threads=None):
     for k in ok[wrong & ~inb]:
         flag(k, "outside band")
         fault[int(k)] = "prismbatch"
-    # FCL disagreements, arbitrated by the LP
+    for k, verdict in exact.items():  # judged at tol by the exact reference
+        if (verdict == "hit") != bool(hit[k]) and verdict in ("hit", "miss"):
+            c["exact_wrong"] += 1
+            flag(k, "outside band")
+            fault[int(k)] = "prismbatch (exact reference, at tol)"
+    # FCL disagreements, arbitrated by the LP (by the exact reference inside the LP's band)
     for k in dis:
         cs = case[k]
         if not np.isfinite(lp[k]):
@@ -559,6 +569,8 @@ def _process_block(cfg, distribution, block, threads=None):
             fault.setdefault(int(k), "unknown (LP failed)")
         elif abs(lp[k]) <= band[k]:
             c["fcl_in_band"][cs] += 1
+            if exact.get(int(k)) in ("hit", "miss") and (exact[int(k)] == "hit") == bool(hit[k]):
+                fault.setdefault(int(k), "fcl (exact reference, at tol)")
             flag(k, "inside band")
         elif hit[k] != (lp[k] > 0):
             c["fcl_out_pb"][cs] += 1
@@ -585,6 +597,22 @@ def _process_block(cfg, distribution, block, threads=None):
             fcl=None if fcl_hit[k] < 0 else bool(fcl_hit[k]), length=Lq[k] if fcl_hit[k] >= 0 else None,
             lp=lp[k], lp_fin=lp_fin[k], at_fault=fault.get(k)))
     return (DISTRIBUTION_NAMES.index(distribution), block), c, times, records
+
+
+def _exact_verdicts(blk, sa, sb, tol, idx, c):
+    """Exact verdicts at tol ("hit", "miss", "band", "unknown") for pairs idx; counts them in c."""
+    if not len(idx):
+        return {}
+    from .exact_gap import judge_pair
+
+    out = {}
+    for k in idx:
+        v = judge_pair(sa.xy, blk.pos_a[k], blk.rot_a[k], sb.xy, blk.pos_b[k], blk.rot_b[k], tol[k]).verdict
+        out[int(k)] = v
+        c["exact_band"] += v == "band"
+        c["exact_unknown"] += v == "unknown"
+    c["exact_pairs"] += len(idx)
+    return out
 
 
 def run_chunk(config, distribution, first_block, n_blocks, threads=None):
@@ -687,7 +715,7 @@ class ValidationResult:
         """True when prismbatch has no disagreement outside the band (nor an unarbitrated one), no
         invalid contact and no non-finite or invalid output (the stiff suite reports its own)."""
         t = self.totals()
-        return (int(t["fcl_out_pb"].sum()) == 0 and int(t["lp_out"].sum()) == 0
+        return (int(t["fcl_out_pb"].sum()) == 0 and int(t["lp_out"].sum()) == 0 and t["exact_wrong"] == 0
                 and int(t["fcl_unarbitrated"].sum()) == 0 and t["contact_invalid"] == 0
                 and t["nonfinite"] == 0 and t["bad_case"] == 0 and t["status_mismatch"] == 0)
 
@@ -900,6 +928,7 @@ def _summary_rows(result):
                      c["standin_checked"], c["standin_short"], c["standin_unsound"], c["standin_max_dev"],
                      c["contact_checked"], c["contact_invalid"], c["contact_max_ratio"], c["nonfinite"],
                      c["bad_case"], c["status_mismatch"],
+                     c["exact_pairs"], c["exact_wrong"], c["exact_band"], c["exact_unknown"],
                      _per_pair(t["pb"], c["pairs"], 1e-6), _per_pair(t["pb_contact"], c["pairs"], 1e-6),
                      _per_pair(t["fcl"], t["fcl_pairs"], 1e-6), _per_pair(t["lp"], t["lp_calls"], 1e-3)])
     return rows
@@ -911,7 +940,8 @@ SUMMARY_HEADER = ["distribution", "pairs", "hits", "fcl_pairs", "fcl_agree", "fc
                   "lp_disagree_in_band", "lp_disagree_out_band", "lp_arbitration_pairs", "lp_failed",
                   "standin_checked", "standin_too_short", "standin_unsound", "standin_max_dev_over_S",
                   "contacts_checked", "contacts_invalid", "contact_max_residual_over_tol", "nonfinite_contacts",
-                  "invalid_cases", "status_contact_mismatch", "prismbatch_us_per_pair",
+                  "invalid_cases", "status_contact_mismatch", "exact_pairs", "exact_wrong_at_tol", "exact_in_band",
+                  "exact_unknown", "prismbatch_us_per_pair",
                   "prismbatch_contact_us_per_pair", "fcl_us_per_pair", "lp_ms_per_call"]
 
 CASES_HEADER = ["distribution", "case", "reference", "pairs", "pb_hit_ref_hit", "pb_hit_ref_miss",
@@ -956,6 +986,10 @@ def format_validation(result):
             L.append(f"  vs LP ({r['lp_pairs']:,} random pairs, {r['lp_pairs_in_band']} in band): agree "
                      f"{r['lp_agree']:,}; disagree inside band {r['lp_disagree_in_band']}, outside band "
                      f"{r['lp_disagree_out_band']}; LP failures {r['lp_failed']}")
+        if r["exact_pairs"]:
+            L.append(f"  exact reference at tol ({r['exact_pairs']} pairs the LP could not settle): prismbatch wrong "
+                     f"{r['exact_wrong_at_tol']}, in [tol, 2 tol] {r['exact_in_band']}, not certified "
+                     f"{r['exact_unknown']}")
         if r["standin_checked"]:
             L.append(f"  stand-in check: {r['standin_checked']} pairs, too short {r['standin_too_short']}, "
                      f"max |finite - infinite margin|/S {r['standin_max_dev_over_S']:.1e}; capped (unsound) "

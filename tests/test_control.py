@@ -147,3 +147,84 @@ def test_single_pair_error_vector_and_broadcast_contacts():
     r = detach(A, np.array([[1, 0.2, -0.5], [0, 0, 0]]), np.zeros(3), DOWN, np.eye(3), [1.0, 2.0])
     assert r.contact_class.tolist() == [4, 5]
     np.testing.assert_allclose(np.linalg.norm(r.force, axis=1), [10.0, 20.0])
+
+
+def _detach_one(**kw):
+    """One contact on a's end face (class 5), |state error| = 5."""
+    return detach(A, [[-0.3, 0.1, 0.0]], np.zeros(3), DOWN, np.eye(3), [3.0, 4.0, 0.0], **kw)
+
+
+def _detach_three(**kw):
+    pts = [[-0.3, 0.1, 0.0], [1, 0.2, -0.5], [0.2, 0.1, -0.3]]
+    return detach(A, pts, np.zeros(3), DOWN, np.eye(3), [1.0, 2.0, 3.0], **kw)
+
+
+@pytest.mark.parametrize("tol", [1e-7, [1e-7], np.float32(1e-7), 0, np.array(1e-7)])
+def test_tol_scalar_or_one_value(tol):
+    assert _detach_one(tol=tol).contact_class.tolist() == [5]
+
+
+def test_tol_one_per_pair():
+    assert _detach_three(tol=[1e-7, 1e-7, 1e-7]).contact_class.tolist() == [5, 4, 6]
+    # per pair: a tolerance of 0.6 puts the third contact (0.3 below the end face) on the end face
+    assert _detach_three(tol=np.array([1e-7, 1e-7, 0.6])).contact_class[2] == 5
+
+
+@pytest.mark.parametrize("tol, match", [
+    ([], r"tol must be a scalar or have shape \(3,\) \(one per pair\), got shape \(0,\)"),
+    ([1e-7, 1e-7], r"tol must be .* got shape \(2,\)"),
+    ([1e-7] * 4, r"tol must be .* got shape \(4,\)"),
+    ([[1e-7], [1e-7], [1e-7]], r"tol must be .* got shape \(3, 1\)"),
+    (np.full((1, 1), 1e-7), r"tol must be .* got shape \(1, 1\)"),
+    (-1e-7, r"^tol must be finite and >= 0, got -1e-07"),
+    (np.nan, r"^tol must be finite and >= 0, got nan"),
+    ([1e-7, np.inf, -1.0], r"^tol\[1\] must be finite and >= 0, got inf"),
+    ([1e-7, 1e-7, -1.0], r"^tol\[2\] must be finite and >= 0, got -1"),
+    ([[1e-7, 1e-7, 1e-7]], r"got shape \(1, 3\)"),
+])
+def test_bad_tol_raises_value_error(tol, match):
+    with pytest.raises(ValueError, match=match):
+        _detach_three(tol=tol)
+
+
+@pytest.mark.parametrize("tol", ["abc", "1e-7", ["1e-7"], [None], object(), True, [True, False, True],
+                                 1e-7 + 0j])
+def test_non_numeric_tol_raises_type_error(tol):
+    with pytest.raises(TypeError, match=r"^tol must have a real numeric dtype"):
+        _detach_three(tol=tol)
+
+
+def test_empty_tol_no_longer_reads_out_of_bounds():
+    # Before: tol=[] read tol[-1] out of bounds and the class changed run to run.
+    for _ in range(3):
+        with pytest.raises(ValueError, match="got shape \\(0,\\)"):
+            _detach_one(tol=[])
+
+
+@pytest.mark.parametrize("eps, exc, match", [
+    (-1.0, ValueError, r"^eps must be finite and >= 0, got -1"),
+    (np.nan, ValueError, r"^eps must be finite and >= 0, got nan"),
+    (np.inf, ValueError, r"^eps must be finite and >= 0, got inf"),
+    ([10.0], ValueError, r"^eps must be a scalar, got shape \(1,\)"),
+    (np.ones(3), ValueError, r"^eps must be a scalar, got shape \(3,\)"),
+    ("10", TypeError, r"^eps must have a real numeric dtype"),
+    (None, TypeError, r"^eps must have a real numeric dtype"),
+    (True, TypeError, r"^eps must have a real numeric dtype"),
+])
+def test_bad_eps(eps, exc, match):
+    with pytest.raises(exc, match=match):
+        _detach_one(eps=eps)
+
+
+def test_eps_that_overflows_the_force_raises():
+    with pytest.raises(ValueError, match=r"^eps = 1e\+308 gives pair 0 a non-finite force"):
+        _detach_one(eps=1e308)
+    # The first pair whose force overflows is named; pairs without contact do not count.
+    with pytest.raises(ValueError, match=r"gives pair 2 a non-finite force"):
+        detach(A, [[np.nan] * 3, [0, 0, 0], [0, 0, 0]], np.zeros(3), DOWN, np.eye(3),
+               [1e150, 1.0, 1e150], eps=1e200)
+    # A large finite product is fine, and eps = 0 gives zero force.
+    r = _detach_one(eps=1e300)
+    np.testing.assert_allclose(r.force[0], 5e300 * r.direction[0], rtol=1e-15)
+    assert (_detach_one(eps=0).force == 0).all()
+    assert _detach_one(eps=np.int64(2)).force[0] @ r.direction[0] == pytest.approx(10.0)

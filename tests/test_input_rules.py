@@ -1,0 +1,124 @@
+"""One orthonormality rule for rotation matrices, whatever the path (issue 9).
+
+The tolerance on max |R^T R - I| is ``ortho_tolerance(input dtype, compute
+dtype)`` = max(ORTHO_TOL[compute], 64 eps(input)); a rejected rotation's
+message says how to fix the input.
+"""
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+import prismbatch as pb
+from prismbatch.poses import ORTHO_TOL_F32, ORTHO_TOL_F64, as_pose, as_rotations, ortho_tolerance
+
+A = pb.Prism.regular(5, 2.0)
+B = pb.Prism.regular(6, 1.0)
+R = Rotation.from_rotvec([0.3, -0.2, 0.5]).as_matrix()
+R6 = np.round(R, 6)  # what a text file with 6 decimals holds: |R^T R - I| ~ 1e-6
+HINT = r"re-orthonormalise.*Rotation\.from_matrix\(R\)\.as_matrix\(\).*dtype=np\.float32"
+
+
+def ortho_error(M):
+    M = np.asarray(M, dtype=np.float64)
+    return np.abs(M.T @ M - np.eye(3)).max()
+
+
+def scaled(M, err):
+    """M scaled so that max |M^T M - I| is about ``err``."""
+    return M * np.sqrt(1.0 + err)
+
+
+def test_ortho_tolerance_rule():
+    eps32 = float(np.finfo(np.float32).eps)
+    assert ortho_tolerance(np.float64, np.float64) == ORTHO_TOL_F64 == 1e-9
+    assert ortho_tolerance(np.float32, np.float64) == pytest.approx(64 * eps32)  # ~7.6e-6
+    assert ortho_tolerance(np.float32, np.float32) == ORTHO_TOL_F32 == 1e-5
+    assert ortho_tolerance(np.float64, np.float32) == 1e-5
+    assert ortho_tolerance(np.int64, np.float64) == 1e-9  # integers are exact: float64 input
+    assert ortho_tolerance(np.dtype("int8"), "float32") == 1e-5
+    with pytest.raises(TypeError, match="dtype"):
+        ortho_tolerance(np.float64, np.float16)
+    with pytest.raises(TypeError, match="input_dtype"):
+        ortho_tolerance(np.complex128, np.float64)
+
+
+def test_six_decimal_rotations_pass_under_float32_compute_only():
+    assert 1e-7 < ortho_error(R6) < 5e-6
+    out = as_rotations(R6, dtype=np.float32)
+    assert out.dtype == np.float32
+    np.testing.assert_array_equal(out, R6.astype(np.float32))
+    with pytest.raises(ValueError, match=r"^rot is not orthonormal: .* > 1e-09; " + HINT):
+        as_rotations(R6)
+    with pytest.raises(ValueError, match=r"rot_a\[1\] is not orthonormal.*" + HINT):
+        as_rotations(np.stack([R, R6]), name="rot_a")
+
+
+def test_transforms_follow_the_same_rule():
+    T = np.eye(4)
+    T[:3, :3] = R6
+    T[:3, 3] = [1.0, 2.0, 3.0]
+    p, Rt = as_pose(T, dtype=np.float32)
+    assert Rt.dtype == np.float32
+    with pytest.raises(ValueError, match=r"pose_a rotation block is not orthonormal.*" + HINT):
+        as_pose(T)
+
+
+def test_float32_input_under_float64_compute_uses_its_own_precision():
+    # Rounding to float32 is far inside 64 eps; an error of 9e-6 is not.
+    as_rotations(R.astype(np.float32))
+    bad = scaled(R, 9e-6).astype(np.float32)
+    assert 8e-6 < ortho_error(bad) < 1e-5
+    with pytest.raises(ValueError, match=r"not orthonormal: .* > 7\.63e-06"):
+        as_rotations(bad)
+    as_rotations(bad, dtype=np.float32)  # float32 compute: 1e-5
+    with pytest.raises(ValueError, match=r"not orthonormal: .* > 1e-05; "):
+        as_rotations(scaled(R, 3e-5).astype(np.float32), dtype=np.float32)
+
+
+def test_the_check_still_rejects_non_rotations():
+    for dtype in (np.float64, np.float32):
+        with pytest.raises(ValueError, match="not orthonormal"):
+            as_rotations(R * 1.001, dtype=dtype)
+        with pytest.raises(ValueError, match="reflection"):
+            as_rotations(-R, dtype=dtype)
+
+
+def test_batch_collide_message_carries_the_hint():
+    with pytest.raises(ValueError, match=r"rot_a\[0\] is not orthonormal.*" + HINT):
+        pb.collide(A, B, np.zeros((1, 3)), R6[None], np.ones((1, 3)), np.eye(3)[None])
+
+
+def _accepts(f):
+    try:
+        f()
+    except ValueError as exc:
+        assert "orthonormal" in str(exc)
+        return False
+    return True
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+@pytest.mark.parametrize("rot", [R.astype(np.float32), R6.astype(np.float32),
+                                 scaled(R, 9e-6).astype(np.float32)], ids=["rounded", "6-decimals", "9e-6"])
+def test_collide_and_collide_pair_agree_on_float32_rotations(dtype, rot):
+    col = pb.Collider(A, B, dtype=dtype)
+    pa, pbp, I3 = np.zeros(3), np.array([0.0, 0.0, 1.0]), np.eye(3)
+    via_pair = _accepts(lambda: col.collide_pair(pa, rot, pbp, I3))
+    via_batch = _accepts(lambda: pb.collide(A, B, pa[None], rot[None], pbp[None], I3[None], dtype=dtype))
+    via_collide = _accepts(lambda: pb.collide(A, B, pa, rot, pbp, I3, dtype=dtype))
+    assert via_pair == via_batch == via_collide
+    assert via_pair == (ortho_error(rot) <= ortho_tolerance(np.float32, dtype))
+
+
+def test_collide_with_float32_accepts_six_decimal_rotations():
+    for pa, ra in ((np.zeros(3), R6), (np.zeros((2, 3)), np.stack([R6, R6]))):
+        r = pb.collide(A, B, pa, ra, pa + [0.0, 0.0, 1.0], np.eye(3), dtype=np.float32)
+        assert r.hit.all()
+    col = pb.Collider(A, B, dtype=np.float32)
+    assert col.collide_pair(np.zeros(3), R6, [0.0, 0.0, 1.0], np.eye(3)).hit
+
+
+def test_one_pair_message_carries_the_hint():
+    with pytest.raises(ValueError, match=r"rot_a is not orthonormal.*" + HINT):
+        pb.Collider(A, B).collide_pair(np.zeros(3), R6, np.ones(3), np.eye(3))
