@@ -16,7 +16,6 @@ import numpy as np
 from numba import njit, prange
 
 from ._projection import T_P, T_R, T_TOL, pair_test
-from .config import MAX_MAGNITUDE
 from .poses import first_bad_rotation
 
 
@@ -226,7 +225,7 @@ def run(a_arrays, b_arrays, pos_a, rot_a, pos_b, rot_b, n, rtol, atol,
 @njit(cache=True)
 def collide_pair(avx, avy, aeang, aetab, avang, ainv, aoff, arad, acen,
                  bvx, bvy, beang, betab, bvang, binv, boff, brad, bcen,
-                 Pa, Ra, Pb, Rb, rtol, atol, eps, ortho_tol_a, ortho_tol_b):
+                 Pa, Ra, Pb, Rb, rtol, atol, eps, ortho_tol_a, ortho_tol_b, max_magnitude):
     """One pair, with its input checks compiled in (the low-latency path).
 
     Returns (problem, value, hit, case, cx, cy, cz). ``problem`` 0 means the
@@ -236,7 +235,7 @@ def collide_pair(avx, avy, aeang, aetab, avang, ainv, aoff, arad, acen,
     nan = math.nan
     for k, P in enumerate((Pa, Pb)):
         for j in range(3):
-            if not abs(P[j]) <= MAX_MAGNITUDE:  # also NaN
+            if not abs(P[j]) <= max_magnitude:  # also NaN
                 return 1 + 4 * k, P[j], False, 0, nan, nan, nan
     for k, (R, ortho_tol) in enumerate(((Ra, ortho_tol_a), (Rb, ortho_tol_b))):
         _, kind, val = first_bad_rotation(R.reshape((1, 3, 3)), ortho_tol)

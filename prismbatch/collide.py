@@ -9,8 +9,8 @@ import numpy as np
 
 from . import _batch
 from ._projection import CASES
-from .config import MAX_MAGNITUDE
-from .poses import ORTHO_HINT, as_pose, common_batch_size, ortho_tolerance
+from .config import MAX_RTOL, SUPPORTED_RANGE
+from .poses import ORTHO_HINT, as_pose, common_batch_size, ortho_tolerance, real_scalar
 from .shapes import as_prism_set
 
 __all__ = ["collide", "Collider", "CollisionResult", "PairResult", "CASES", "DEFAULT_RTOL", "pair_scale_tolerance"]
@@ -112,12 +112,11 @@ class Collider:
         if dt not in DEFAULT_RTOL:
             raise TypeError(f"dtype must be numpy.float64 or numpy.float32, got {dt}")
         self.dtype = dt
-        self.rtol = float(DEFAULT_RTOL[dt] if rtol is None else rtol)
-        self.atol = float(atol)
-        if not (np.isfinite(self.rtol) and self.rtol >= 0 and np.isfinite(self.atol) and self.atol >= 0):
-            raise ValueError(f"rtol and atol must be finite and >= 0, got rtol={rtol}, atol={atol}")
-        set_a, self._a_per = as_prism_set(shape_a, "shape_a")
-        set_b, self._b_per = as_prism_set(shape_b, "shape_b")
+        self.rtol = real_scalar(DEFAULT_RTOL[dt] if rtol is None else rtol, "rtol", 0.0, MAX_RTOL)
+        self.atol = real_scalar(atol, "atol", 0.0, SUPPORTED_RANGE[dt.name][1])
+        set_a, self._a_per = as_prism_set(shape_a, "shape_a", dt)
+        set_b, self._b_per = as_prism_set(shape_b, "shape_b", dt)
+        self._max_magnitude = SUPPORTED_RANGE[dt.name][1]
         self.shape_a, self.shape_b = shape_a, shape_b
         self._a = set_a.kernel_arrays(dt)
         self._b = set_b.kernel_arrays(dt)
@@ -137,6 +136,9 @@ class Collider:
         """Test the pose pairs; see :func:`collide` for the arguments."""
         if pos_b is None:
             raise TypeError("collide needs a pose for b: pos_b (and rot_b, or a 4x4 transform as pos_b)")
+        _check_flag(contact, "contact")
+        if parallel is not None:
+            _check_flag(parallel, "parallel")
         if self._is_single_pair(pos_a, rot_a, pos_b, rot_b, quat_order):
             # One plain pair: the compiled one-pair path (same kernel, far less Python).
             r = self.collide_pair(pos_a, rot_a, pos_b, rot_b)
@@ -177,9 +179,9 @@ class Collider:
         Pa, Ra, Pb, Rb = f(pos_a, (3,), "pos_a"), f(rot_a, (3, 3), "rot_a"), f(pos_b, (3,), "pos_b"), f(rot_b, (3, 3), "rot_b")
         ta, tb = self._ortho_tol(rot_a), self._ortho_tol(rot_b)
         problem, val, hit, case, cx, cy, cz = _batch.collide_pair(
-            *self._a, *self._b, Pa, Ra, Pb, Rb, self.rtol, self.atol, self._eps, ta, tb)
+            *self._a, *self._b, Pa, Ra, Pb, Rb, self.rtol, self.atol, self._eps, ta, tb, self._max_magnitude)
         if problem:
-            raise ValueError(_pair_problem(problem, val, ta if problem <= 4 else tb))
+            raise ValueError(_pair_problem(problem, val, ta if problem <= 4 else tb, self._max_magnitude))
         return PairResult(bool(hit), int(case), np.array([cx, cy, cz]))
 
     def explain(self, pos_a, rot_a, pos_b, rot_b):
@@ -243,6 +245,12 @@ class Collider:
         return a
 
 
+def _check_flag(x, name):
+    """TypeError unless ``x`` is a bool (a string such as 'no' is not False)."""
+    if not isinstance(x, (bool, np.bool_)):
+        raise TypeError(f"{name} must be True or False, got {type(x).__name__} {x!r}")
+
+
 def _kernel_array(x, shape, dtype):
     """``x`` as a C-contiguous, writeable array of ``dtype`` (copied only if needed).
 
@@ -253,14 +261,14 @@ def _kernel_array(x, shape, dtype):
     return a if a.flags.writeable else a.copy()
 
 
-def _pair_problem(code, val, ortho_tol):
+def _pair_problem(code, val, ortho_tol, max_magnitude):
     """The message of a problem code of the one-pair kernel (the same words as :func:`as_pose`)."""
     body, kind = "ab"[(code - 1) // 4], (code - 1) % 4  # codes 1-4 for a, 5-8 for b
     name = ("pos_" if kind == 0 else "rot_") + body
     if kind == 0:
         if not np.isfinite(val):
             return f"{name} contains non-finite values (NaN or inf)"
-        return (f"{name} has a coordinate {val:g} outside the supported range |x| <= {MAX_MAGNITUDE:g}; "
+        return (f"{name} has a coordinate {val:g} outside the supported range |x| <= {max_magnitude:g}; "
                 f"rescale the units")
     if kind == 1:
         return f"{name} contains non-finite values (NaN or inf)"

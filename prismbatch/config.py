@@ -15,3 +15,32 @@ MAX_MAGNITUDE = 1e100
 #: it, squared lengths underflow. :class:`~prismbatch.Prism` itself accepts any
 #: finite convex polygon; :func:`~prismbatch.collide` checks this range.
 MIN_RADIUS = 1e-100
+
+#: The same two bounds for float32 compute (largest float32 ~3.4e38, smallest
+#: normal ~1.2e-38): products of up to three lengths stay finite and normal.
+MAX_MAGNITUDE_F32 = 1e12
+MIN_RADIUS_F32 = 1e-12
+
+#: Thinnest outline accepted, relative to the polygon's size (its largest
+#: edge coordinate): shorter edges and smaller areas (twice the area, over
+#: the size squared) are outside the range the kernels were verified on.
+MIN_RELATIVE_EDGE = 1e-14
+MIN_RELATIVE_AREA = 1e-13
+
+#: Largest relative tolerance accepted (a pair's tolerance then stays below
+#: the scene's own size, and finite).
+MAX_RTOL = 1.0
+
+#: Most vertices :meth:`Prism.regular` builds (memory: ~200 bytes a vertex
+#: once the kernels' tables are built).
+MAX_VERTICES = 10_000_000
+
+#: (smallest radius, largest magnitude) by compute dtype name.
+SUPPORTED_RANGE = {"float64": (MIN_RADIUS, MAX_MAGNITUDE), "float32": (MIN_RADIUS_F32, MAX_MAGNITUDE_F32)}
+
+#: :func:`~prismbatch.control.detach` refuses a "contact" that lies outside a
+#: by more than its tol plus this times a's end-face radius (plus the rounding
+#: of the point's coordinates): far looser than any contact :func:`collide`
+#: returns (within twice its pair tolerance of both bodies), so only points
+#: that are not contacts at all are refused.
+NOT_A_CONTACT_RTOL = 1e-3

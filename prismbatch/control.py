@@ -31,14 +31,18 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit, prange
 
-from ._batch import PARALLEL_MIN_PAIRS, _variant
-from ._planar import wedge_edge
-from .poses import _as_real_array, _where, as_pose, as_rotations, common_batch_size
+from ._batch import _variant, use_parallel
+from ._planar import point_polygon_distance, wedge_edge
+from .config import NOT_A_CONTACT_RTOL
+from .poses import _as_real_array, _where, as_pose, as_rotations, common_batch_size, real_scalar
 from .shapes import as_prism_set
 
 __all__ = ["detach", "DetachResult", "CONTACT_CLASSES"]
 
 NONE, VERTEX, END_EDGE, LATERAL_EDGE, SIDE_FACE, END_FACE, INSIDE = 0, 1, 2, 3, 4, 5, 6
+#: Kernel-only code: the point lies outside a by more than tol (detach raises).
+_NOT_ON_A = -1
+EPS64 = float(np.finfo(np.float64).eps)
 
 CONTACT_CLASSES = {
     0: "no contact (no hit)",
@@ -102,7 +106,7 @@ def _outward_dir(nx, ny, nz, ex, ey, ez, dbx, dby, dbz, dax, day, daz):
     return cx / cn, cy / cn, cz / cn
 
 
-def _detach_loop(avx, avy, avang, ainv, aoff, acen, pos_a, rot_a, rot_b, contact, tol,
+def _detach_loop(avx, avy, avang, ainv, aoff, arad, acen, pos_a, rot_a, rot_b, contact, tol,
                    cls_out, dir_out, depth_out):
     n = cls_out.shape[0]
     nsa = aoff.shape[0] - 1
@@ -158,6 +162,19 @@ def _detach_loop(avx, avy, avang, ainv, aoff, acen, pos_a, rot_a, rot_b, contact
         on_end = abs(z) <= t
         near_v = best_v <= t
         near_e = best_e <= t
+        # Not a contact of a: above its end face, or beside its polygon (the
+        # wedge edge line bounds the distance from below), by more than t plus
+        # a margin that holds every contact collide returns (within 2 of its
+        # own tolerances, and the rounding of far coordinates).
+        far = t + NOT_A_CONTACT_RTOL * arad[ka] + 8.0 * EPS64 * (
+            abs(contact[i, 0]) + abs(contact[i, 1]) + abs(contact[i, 2]) + abs(ox) + abs(oy) + abs(oz))
+        if z < -far or point_polygon_distance(avx, avy, avang, ainv, s, m, x, y) < -far:
+            cls_out[i] = _NOT_ON_A
+            dir_out[i, 0] = math.nan
+            dir_out[i, 1] = math.nan
+            dir_out[i, 2] = math.nan
+            depth_out[i] = math.nan
+            continue
         # edge vectors and outward normals in a's local frame
         if near_v:
             ip_ = (iv - 1) % m
@@ -220,17 +237,6 @@ def _first_bad(ok):
     """Index of the first False in 1-D ``ok``, or None if all are True."""
     bad = np.flatnonzero(~ok)
     return None if bad.size == 0 else int(bad[0])
-
-
-def _check_eps(eps):
-    """The gain as a float: a real scalar, finite and >= 0."""
-    e = _as_real_array(eps, "eps")
-    if e.ndim != 0:
-        raise ValueError(f"eps must be a scalar, got shape {e.shape}")
-    e = float(e)
-    if not (math.isfinite(e) and e >= 0.0):
-        raise ValueError(f"eps must be finite and >= 0, got {e}")
-    return e
 
 
 def _check_tol(tol, n):
@@ -329,26 +335,29 @@ def detach(shape_a, contact, pos_a, rot_a, rot_b, state_error, *, eps=10.0, tol=
     set_a, per = as_prism_set(shape_a, "shape_a")
     pa, ra = as_pose(pos_a, rot_a, quat_order=quat_order, name="a")
     rb = as_rotations(rot_b, quat_order=quat_order, name="rot_b")
-    c = np.asarray(contact, dtype=np.float64)
+    c = _as_real_array(contact, "contact").astype(np.float64)
     if c.ndim == 1:
         c = c[None, :]
     if c.ndim != 2 or c.shape[1] != 3:
         raise ValueError(f"contact must have shape (N, 3), got {np.shape(contact)}")
-    if np.isinf(c).any():
-        raise ValueError(f"contact[{int(np.argmax(np.isinf(c).any(axis=1)))}] is infinite")
-    err = np.asarray(state_error, dtype=np.float64)
+    nan_rows = np.isnan(c).any(axis=1)
+    i = _first_bad(~(np.isinf(c).any(axis=1) | (nan_rows & ~np.isnan(c).all(axis=1))))
+    if i is not None:
+        raise ValueError(f"contact[{i}] = {c[i].tolist()}: a contact is finite, or all NaN for no contact")
+    err = _as_real_array(state_error, "state_error").astype(np.float64)
     if not np.all(np.isfinite(err)):
         raise ValueError("state_error contains NaN or inf")
     if err.ndim == 1 and len(c) == 1:
         err = err[None, :]  # one pair's error vector
-    errn = np.linalg.norm(err.reshape(err.shape[0], -1), axis=1) if err.ndim >= 1 else np.abs(err).reshape(1)
+    # (N, k) rows -> their norms, (N,) -> as given (abs), a scalar -> one value
+    errn = np.sqrt(np.square(err).sum(axis=tuple(range(1, err.ndim)))) if err.ndim >= 1 else np.abs(err).reshape(1)
     n = common_batch_size(pa, ra, np.zeros(3), rb, n_shapes=len(set_a) if per else None)
     if n == 1:
         n = len(c)  # the contacts set the batch when every pose is single
     if len(c) not in (1, n) or len(errn) not in (1, n):
         raise ValueError(f"batch sizes do not match: contact has {len(c)} rows, state_error {len(errn)}, "
                          f"poses and shapes {n}")
-    eps = _check_eps(eps)
+    eps = real_scalar(eps, "eps", 0.0)
     if tol is None:
         tol_arr = 1e-9 * set_a.radius + 16 * np.finfo(np.float64).eps * (
             set_a.radius + np.abs(pa).max(initial=0.0))
@@ -358,12 +367,17 @@ def detach(shape_a, contact, pos_a, rot_a, rot_b, state_error, *, eps=10.0, tol=
     direction = np.empty((n, 3))
     depth = np.empty(n)
     cc = np.ascontiguousarray(np.broadcast_to(c, (n, 3)))
-    if parallel is None:
-        parallel = n >= PARALLEL_MIN_PAIRS
-    kern = _detach_parallel if parallel else _detach_serial
-    kern(set_a.vx, set_a.vy, set_a.vertex_angle, set_a.inv_edge_len, set_a.offsets, set_a.centre,
+    if parallel is not None and not isinstance(parallel, (bool, np.bool_)):
+        raise TypeError(f"parallel must be True, False or None, got {parallel!r}")
+    kern = _detach_parallel if use_parallel(parallel, n) else _detach_serial
+    kern(set_a.vx, set_a.vy, set_a.vertex_angle, set_a.inv_edge_len, set_a.offsets, set_a.radius, set_a.centre,
                    np.ascontiguousarray(pa.reshape(-1, 3)), np.ascontiguousarray(ra.reshape(-1, 3, 3)),
                    np.ascontiguousarray(rb.reshape(-1, 3, 3)), cc, np.ascontiguousarray(tol_arr), cls, direction,
                    depth)
+    i = _first_bad(cls >= 0)
+    if i is not None:
+        raise ValueError(f"contact[{i}] = {cc[i].tolist()} lies outside a by more than tol + "
+                         f"{NOT_A_CONTACT_RTOL:g} x a's radius: not a contact point of a (pass "
+                         f"collide(..., contact=True).contact)")
     force = _force(eps, errn, direction)
     return DetachResult(cls, direction, force, depth)

@@ -21,7 +21,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .config import MAX_MAGNITUDE
+from .config import SUPPORTED_RANGE
 
 __all__ = [
     "ortho_tolerance",
@@ -95,6 +95,28 @@ def _as_real_array(x, name: str) -> np.ndarray:
     return arr
 
 
+_FLOAT_MAX = float(np.finfo(np.float64).max)
+
+
+def real_scalar(x, name: str, lo: float = -_FLOAT_MAX, hi: float = _FLOAT_MAX) -> float:
+    """``x`` as a finite float in [lo, hi].
+
+    A real number or 0-d array of one; TypeError for strings, bools, None and
+    other non-numbers, ValueError for arrays of another shape, NaN, inf and
+    values out of range.
+    """
+    a = None if isinstance(x, (str, bytes, bool, np.bool_)) else np.asarray(x)
+    if a is None or a.dtype.kind not in "iuf":
+        raise TypeError(f"{name} must be a real number, got {type(x).__name__} {x!r}")
+    if a.ndim != 0:
+        raise ValueError(f"{name} must be a scalar, got shape {a.shape}")
+    v = float(a)
+    if not lo <= v <= hi:  # also NaN
+        rng = "finite" if lo == -_FLOAT_MAX else f"finite and >= {lo:g}"
+        raise ValueError(f"{name} must be {rng if hi == _FLOAT_MAX else f'in [{lo:g}, {hi:g}]'}, got {v!r}")
+    return v
+
+
 def ortho_tolerance(input_dtype, compute_dtype) -> float:
     """Tolerance on max ``|R^T R - I|`` for rotation matrices: the one rule.
 
@@ -142,12 +164,14 @@ def _check_finite(a64: np.ndarray, name: str, batched: bool, what: str = "") -> 
         raise ValueError(f"{name}{what} contains non-finite values (NaN or inf)")
 
 
-def _check_positions(p64: np.ndarray, name: str, batched: bool, what: str = "") -> None:
-    """Raise naming the first position with a coordinate NaN, inf or beyond MAX_MAGNITUDE.
+def _check_positions(p64: np.ndarray, name: str, batched: bool, what: str = "", dtype=np.float64) -> None:
+    """Raise naming the first position with a coordinate NaN, inf or beyond the supported range.
 
-    One pass: ``|x| <= MAX_MAGNITUDE`` is False for NaN too.
+    The range is :data:`~prismbatch.config.SUPPORTED_RANGE` of the compute
+    ``dtype``. One pass: ``|x| <= limit`` is False for NaN too.
     """
-    ok = np.abs(p64) <= MAX_MAGNITUDE
+    limit = SUPPORTED_RANGE[np.dtype(dtype).name][1]
+    ok = np.abs(p64) <= limit
     if ok.all():
         return
     rows = ok.reshape(p64.shape[0], -1).all(axis=1) if batched else ok.reshape(1, -1).all(axis=1)
@@ -156,8 +180,8 @@ def _check_positions(p64: np.ndarray, name: str, batched: bool, what: str = "") 
     where = _where(name, i if batched else None) + what
     if not math.isfinite(v):
         raise ValueError(f"{where} contains non-finite values (NaN or inf)")
-    raise ValueError(f"{where} has a coordinate {v:g} outside the supported range |x| <= {MAX_MAGNITUDE:g}; "
-                     f"rescale the units")
+    raise ValueError(f"{where} has a coordinate {v:g} outside the supported range |x| <= {limit:g}"
+                     f"{' for float32' if limit != SUPPORTED_RANGE['float64'][1] else ''}; rescale the units")
 
 
 @njit(cache=True)
@@ -385,7 +409,7 @@ def as_positions(pos, *, name="pos", dtype=np.float64) -> np.ndarray:
         float64/float32.
     ValueError
         On a wrong shape, non-finite entries or a coordinate beyond
-        :data:`~prismbatch.config.MAX_MAGNITUDE` (the message names
+        :data:`~prismbatch.config.SUPPORTED_RANGE` of ``dtype`` (the message names
         ``name`` and the index of the first bad position).
     """
     out_dt = _out_dtype(dtype)
@@ -393,7 +417,7 @@ def as_positions(pos, *, name="pos", dtype=np.float64) -> np.ndarray:
     if arr.ndim not in (1, 2) or arr.shape[-1] != 3:
         raise ValueError(f"{name} has shape {arr.shape}; expected (3,) or (N, 3)")
     p64 = np.asarray(arr, dtype=np.float64)
-    _check_positions(p64, name, arr.ndim == 2)
+    _check_positions(p64, name, arr.ndim == 2, dtype=out_dt)
     return np.ascontiguousarray(p64, dtype=out_dt)
 
 
@@ -455,7 +479,7 @@ def as_pose(pos, rot=None, *, quat_order=None, name="a", dtype=np.float64):
     batched = arr.ndim == 3
     T64 = np.asarray(arr, dtype=np.float64)
     _check_finite(T64, tname, batched)
-    _check_positions(T64[..., :3, 3], tname, batched, what=" translation")
+    _check_positions(T64[..., :3, 3], tname, batched, what=" translation", dtype=out_dt)
     Tb = T64 if batched else T64[None]
     last_row = np.array([0.0, 0.0, 0.0, 1.0])
     row_err = np.abs(Tb[:, 3, :] - last_row).max(axis=1, initial=0.0)

@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ._projection import CASES
 from ._report import jsonable, run_metadata, write_json
 
 __all__ = ["FORMAT", "VERSION", "REQUIRED_KEYS", "make_record", "write_replay", "read_replay",
@@ -160,6 +161,9 @@ def _check_record(rec, where):
     saved = _expect(rec["prismbatch"], dict, f"{where}: prismbatch", "a JSON object")
     for k, t, what in (("hit", bool, "true or false"), ("case", int, "an integer")):
         _expect(saved.get(k), t, f"{where}: prismbatch.{k}", what)
+    if saved["case"] not in CASES:
+        raise ValueError(f"{where}: prismbatch.case must be a case number {min(CASES)}..{max(CASES)}, "
+                         f"got {_short(saved['case'])}")
     if saved.get("contact") is not None:
         _numbers(saved["contact"], (3,), f"{where}: prismbatch.contact", finite=False, null=True)
     refs = _expect(rec["references"], dict, f"{where}: references", "a JSON object")
@@ -260,8 +264,6 @@ def _known(e, key):
 
 def format_trace(rec, e, *, number=None, total=None):
     """The trace of one record as text lines (``e`` from :func:`replay_record`)."""
-    from ._projection import CASES
-
     head = "record" + (f" {number}" if number is not None else "") + (f" of {total}" if total else "")
     src = ", ".join(f"{k} {_text(rec[k])}" for k in _SHOWN if k in rec)
     L = [f"{head}: {_text(rec['kind'])}" + (f" ({src})" if src else "")]

@@ -15,7 +15,8 @@ from __future__ import annotations
 import numpy as np
 
 from ._planar import edge_search_tables
-from .config import MAX_MAGNITUDE, MIN_RADIUS
+from .config import MAX_VERTICES, MIN_RELATIVE_AREA, MIN_RELATIVE_EDGE, SUPPORTED_RANGE
+from .poses import real_scalar
 
 __all__ = ["Prism", "PrismSet", "validate_polygon"]
 
@@ -51,7 +52,10 @@ def validate_polygon(xy, *, name="polygon"):
         area, a non-convex or self-intersecting outline. The message names the
         polygon and the offending vertex.
     """
-    arr = np.asarray(xy)
+    try:
+        arr = np.asarray(xy)
+    except ValueError as exc:  # ragged nested lists
+        raise ValueError(f"{name}: vertices could not be read as an (n, 2) array: {exc}") from None
     if arr.dtype.kind not in "iuf":
         raise TypeError(f"{name}: vertices must be real numbers, got dtype {arr.dtype}")
     arr = np.array(arr, dtype=np.float64, order="C")
@@ -72,13 +76,20 @@ def validate_polygon(xy, *, name="polygon"):
     elen = np.hypot(edges[:, 0], edges[:, 1])
     # Repeated vertices: consecutive duplicates show as zero-length edges;
     # non-consecutive ones make the outline self-touching (caught below).
-    zero = elen <= 1e-14
-    if zero.any():
-        k = int(np.argmax(zero))
-        raise ValueError(f"{name}: vertex {(k + 1) % n} repeats vertex {k} (zero-length edge)")
+    # (Distinct floats never differ by exactly 0, so a zero edge is a repeat.)
+    short = elen <= MIN_RELATIVE_EDGE
+    if short.any():
+        k = int(np.argmax(short))
+        if elen[k] == 0.0:
+            raise ValueError(f"{name}: vertex {(k + 1) % n} repeats vertex {k} (zero-length edge)")
+        raise ValueError(f"{name}: edge {k} is {elen[k]:.3g} of the polygon's size, below the supported "
+                         f"{MIN_RELATIVE_EDGE:g}: merge vertices {k} and {(k + 1) % n}")
     area2 = float(np.sum(rel[:, 0] * np.roll(rel[:, 1], -1) - np.roll(rel[:, 0], -1) * rel[:, 1]))
-    if abs(area2) <= 1e-13:
-        raise ValueError(f"{name}: polygon has zero area (collinear vertices)")
+    if abs(area2) <= MIN_RELATIVE_AREA:
+        if _exact_area2(arr) == 0:
+            raise ValueError(f"{name}: polygon has zero area (collinear vertices)")
+        raise ValueError(f"{name}: polygon is too thin: its area is about {abs(area2) / 2:.3g} of its size "
+                         f"squared, below the supported {MIN_RELATIVE_AREA / 2:g}")
     if area2 < 0.0:
         arr = np.ascontiguousarray(arr[::-1])
         edges = -np.roll(edges[::-1], -1, axis=0)
@@ -100,6 +111,14 @@ def validate_polygon(xy, *, name="polygon"):
         k = int(np.argmax(np.abs(turns) >= np.pi - 1e-12))
         raise ValueError(f"{name}: polygon folds back on itself at vertex {k}")
     return arr
+
+
+def _exact_area2(xy):
+    """Twice the signed area in exact rational arithmetic (floats are exact rationals)."""
+    from fractions import Fraction
+
+    q = [(Fraction(float(x)), Fraction(float(y))) for x, y in xy]
+    return sum(x0 * y1 - x1 * y0 for (x0, y0), (x1, y1) in zip(q, q[1:] + q[:1]))
 
 
 def _unit_scaled(xy):
@@ -208,13 +227,17 @@ class Prism:
         centre : (2,) array_like, optional
             Centre in the local frame.
         """
-        n = int(n)
-        if n < 3:
-            raise ValueError(f"Prism.regular: n must be >= 3, got {n}")
-        if not (np.isfinite(radius) and radius > 0):
-            raise ValueError(f"Prism.regular: radius must be finite and > 0, got {radius}")
+        if isinstance(n, (bool, np.bool_)) or not isinstance(n, (int, np.integer)):
+            raise TypeError(f"Prism.regular: n must be an integer, got {type(n).__name__} {n!r}")
+        if not 3 <= n <= MAX_VERTICES:
+            raise ValueError(f"Prism.regular: n must be in [3, {MAX_VERTICES:,}], got {n}")
+        radius = real_scalar(radius, "Prism.regular: radius", 5e-324, 1.7976931348623157e308)
+        phase = real_scalar(phase, "Prism.regular: phase", -1e6, 1e6)
+        c = np.asarray(centre)
+        if c.dtype.kind not in "iuf" or c.shape != (2,) or not np.isfinite(c).all():
+            raise ValueError(f"Prism.regular: centre must be 2 finite numbers, got {centre!r}")
         ang = phase + _TWO_PI * np.arange(n) / n
-        xy = np.column_stack([radius * np.cos(ang), radius * np.sin(ang)]) + np.asarray(centre, float)
+        xy = np.column_stack([radius * np.cos(ang), radius * np.sin(ang)]) + c.astype(float)
         return cls(xy)
 
     @property
@@ -302,8 +325,12 @@ class PrismSet:
                 f(self.inv_edge_len), self.offsets, f(self.radius), f(self.centre))
 
 
-def as_prism_set(shape, name):
-    """Return ``(PrismSet, per_pair)`` for a Prism or PrismSet argument."""
+def as_prism_set(shape, name, dtype=np.float64):
+    """Return ``(PrismSet, per_pair)`` for a Prism or PrismSet argument.
+
+    Raises ValueError if a polygon is outside the range the kernels support
+    in ``dtype`` (:data:`~prismbatch.config.SUPPORTED_RANGE`).
+    """
     if isinstance(shape, PrismSet):
         pset, per_pair = shape, True
     elif isinstance(shape, Prism):
@@ -314,18 +341,19 @@ def as_prism_set(shape, name):
         per_pair = False
     else:
         raise TypeError(f"{name} must be a prismbatch.Prism or PrismSet, got {type(shape).__name__}")
-    _check_kernel_range(pset, name if not per_pair else f"{name} (PrismSet)")
+    _check_kernel_range(pset, name if not per_pair else f"{name} (PrismSet)", np.dtype(dtype).name)
     return pset, per_pair
 
 
-def _check_kernel_range(pset, name):
+def _check_kernel_range(pset, name, dtype_name):
     """Raise ValueError if a polygon's size or offset is outside the range the kernels support."""
-    small = pset.radius < MIN_RADIUS
-    large = (pset.radius > MAX_MAGNITUDE) | (np.abs(pset.centre).max(axis=1) > MAX_MAGNITUDE)
+    min_radius, max_magnitude = SUPPORTED_RANGE[dtype_name]
+    small = pset.radius < min_radius
+    large = (pset.radius > max_magnitude) | (np.abs(pset.centre).max(axis=1) > max_magnitude)
     if small.any() or large.any():
         k = int(np.argmax(small | large))
         raise ValueError(
-            f"{name}: polygon {k} (radius {pset.radius[k]:.3g}, centre {pset.centre[k].tolist()}) is outside "
-            f"the supported range: radius in [{MIN_RADIUS:g}, {MAX_MAGNITUDE:g}] and |centre| <= "
-            f"{MAX_MAGNITUDE:g}; rescale the units"
+            f"{name}: polygon {k} (radius {float(pset.radius[k])!r}, centre {pset.centre[k].tolist()}) is outside "
+            f"the supported range for {dtype_name}: radius in [{min_radius:g}, {max_magnitude:g}] and |centre| <= "
+            f"{max_magnitude:g}; rescale the units"
         )

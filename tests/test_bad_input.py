@@ -44,10 +44,41 @@ def test_clockwise_is_the_only_repair():
 
 
 def test_regular_arguments():
-    with pytest.raises(ValueError, match="n must be >= 3"):
+    with pytest.raises(ValueError, match=r"n must be in \[3, "):
         pb.Prism.regular(2, 1.0)
+    with pytest.raises(ValueError, match=r"n must be in \[3, 10,000,000\], got 1000000000000"):
+        pb.Prism.regular(10**12, 1.0)  # a clear limit, not a MemoryError
+    for n in (3.7, "5", True):
+        with pytest.raises(TypeError, match="n must be an integer"):
+            pb.Prism.regular(n, 1.0)
     with pytest.raises(ValueError, match="radius"):
         pb.Prism.regular(5, -1.0)
+    with pytest.raises(TypeError, match="radius must be a real number"):
+        pb.Prism.regular(5, "1")
+    with pytest.raises(ValueError, match="radius must be a scalar"):
+        pb.Prism.regular(5, np.array([1.0, 2.0]))
+    with pytest.raises(ValueError, match="centre must be 2 finite numbers"):
+        pb.Prism.regular(5, 1.0, centre=(0, 0, 0))
+    assert pb.Prism.regular(np.int64(5), np.float32(2)).n_vertices == 5
+
+
+def test_ragged_polygon_names_the_argument():
+    with pytest.raises(ValueError, match=r"^prism: vertices could not be read"):
+        pb.Prism([[0, 0], [1, 0, 3], [0, 1]])
+
+
+def test_thin_polygons_get_the_right_message():
+    # A true repeat and true collinearity (exact) keep their messages ...
+    with pytest.raises(ValueError, match="vertex 2 repeats vertex 1"):
+        pb.Prism([[0, 0], [1, 0], [1, 0], [0, 1]])
+    with pytest.raises(ValueError, match="zero area"):
+        pb.Prism([[0, 0], [1e10, 1e-3], [2e10, 2e-3]])
+    # ... a sliver beyond the supported aspect is named as such, not as "zero area".
+    with pytest.raises(ValueError, match="too thin"):
+        pb.Prism([[0, 0], [1e10, 0], [1e10, 1e-3], [0, 1e-3]])
+    with pytest.raises(ValueError, match="edge 1 is .* below the supported 1e-14: merge vertices 1 and 2"):
+        pb.Prism([[0, 0], [1e10, 0], [1e10, 1e-5], [0, 1e-5]])
+    assert pb.Prism([[0, 0], [1e10, 0], [1e10, 1e-2], [0, 1e-2]]).n_vertices == 4
 
 
 def _call(**kw):
@@ -94,8 +125,24 @@ def test_bad_shape_argument_type():
 
 
 def test_bad_tolerance_and_dtype():
-    with pytest.raises(ValueError, match="rtol and atol"):
-        pb.collide(A, B, np.zeros(3), I3, np.zeros(3), I3, rtol=-1.0)
+    call = lambda **kw: pb.collide(A, B, np.zeros(3), I3, np.zeros(3), I3, **kw)  # noqa: E731
+    with pytest.raises(ValueError, match=r"rtol must be in \[0, 1\], got -1"):
+        call(rtol=-1.0)
+    with pytest.raises(ValueError, match=r"rtol must be in \[0, 1\], got 1e\+308"):
+        call(rtol=1e308)  # the tolerance would overflow to inf: every pair a hit
+    for bad in ("1e-9", True):
+        with pytest.raises(TypeError, match="rtol must be a real number"):
+            call(rtol=bad)
+    with pytest.raises(TypeError, match="atol must be a real number"):
+        call(atol=None)
+    with pytest.raises(ValueError, match="atol must be a scalar"):
+        call(atol=np.array([1.0, 2.0]))
+    with pytest.raises(ValueError, match="atol must be in"):
+        call(atol=np.nan)
+    assert call(rtol=np.float32(1e-6), atol=np.array(0.0)).hit.tolist() == [True]
+    for flag in ("parallel", "contact"):
+        with pytest.raises(TypeError, match=f"{flag} must be True or False, got str 'no'"):
+            call(**{flag: "no"})
     with pytest.raises(TypeError, match="float64 or numpy.float32"):
         pb.collide(A, B, np.zeros(3), I3, np.zeros(3), I3, dtype=np.int32)
 

@@ -207,9 +207,9 @@ def test_empty_tol_no_longer_reads_out_of_bounds():
     (np.inf, ValueError, r"^eps must be finite and >= 0, got inf"),
     ([10.0], ValueError, r"^eps must be a scalar, got shape \(1,\)"),
     (np.ones(3), ValueError, r"^eps must be a scalar, got shape \(3,\)"),
-    ("10", TypeError, r"^eps must have a real numeric dtype"),
-    (None, TypeError, r"^eps must have a real numeric dtype"),
-    (True, TypeError, r"^eps must have a real numeric dtype"),
+    ("10", TypeError, r"^eps must be a real number, got str"),
+    (None, TypeError, r"^eps must be a real number, got NoneType"),
+    (True, TypeError, r"^eps must be a real number, got bool"),
 ])
 def test_bad_eps(eps, exc, match):
     with pytest.raises(exc, match=match):
@@ -228,3 +228,41 @@ def test_eps_that_overflows_the_force_raises():
     np.testing.assert_allclose(r.force[0], 5e300 * r.direction[0], rtol=1e-15)
     assert (_detach_one(eps=0).force == 0).all()
     assert _detach_one(eps=np.int64(2)).force[0] @ r.direction[0] == pytest.approx(10.0)
+
+
+@pytest.mark.parametrize("point", [[50.0, 0.0, -5.0], [0.0, 0.0, 1e200], [0.0, 0.0, 0.3], [1.5, 0.0, -0.5]])
+def test_points_that_are_not_contacts_of_a_are_refused(point):
+    # Outside a (above its end face, beside its side faces) by far more than tol:
+    # no class would be true of them.
+    with pytest.raises(ValueError, match=r"contact\[0\] = .* lies outside a .*not a contact point of a"):
+        detach(A, [point], np.zeros(3), DOWN, np.eye(3), [1.0, 0.0, 0.0])
+
+
+def test_contacts_from_collide_are_never_refused():
+    rng = np.random.default_rng(11)
+    pos_b = rng.uniform(-1.5, 1.5, (3000, 3))
+    Rb = random_rotations(3000, rng)
+    r = pb.collide(A, B, np.zeros(3), DOWN, pos_b, Rb, contact=True)
+    d = detach(A, r.contact, np.zeros(3), DOWN, Rb, np.ones(3000))
+    assert r.hit.sum() > 300
+    np.testing.assert_array_equal(d.contact_class == 0, ~r.hit)
+
+
+def test_contact_rows_are_finite_or_all_nan():
+    with pytest.raises(ValueError, match=r"contact\[1\] = \[0\.5, 0\.0, nan\]: a contact is finite, or all NaN"):
+        detach(A, [[0.0, 0.0, 0.0], [0.5, 0.0, np.nan]], np.zeros(3), DOWN, np.eye(3), np.ones(2))
+    for bad in (np.zeros((1, 3), complex), np.array([["a", "b", "c"]]), np.zeros((1, 3), bool)):
+        with pytest.raises(TypeError, match="contact must have a real numeric dtype"):
+            detach(A, bad, np.zeros(3), DOWN, np.eye(3), np.ones(1))
+    with pytest.raises(TypeError, match="state_error must have a real numeric dtype"):
+        detach(A, np.zeros((1, 3)), np.zeros(3), DOWN, np.eye(3), np.ones(3, complex))
+
+
+def test_empty_batch_gives_empty_results():
+    d = detach(A, np.zeros((0, 3)), np.zeros(3), DOWN, np.eye(3), np.zeros((0, 3)))
+    assert d.contact_class.shape == (0,) and d.force.shape == (0, 3)
+
+
+def test_parallel_flag_is_a_bool():
+    with pytest.raises(TypeError, match="parallel must be True, False or None"):
+        _detach_one(parallel="no")

@@ -275,3 +275,12 @@ def test_cli_prints_one_line_and_no_escape_sequences(tmp_path, capsys, changes, 
     out, err = capsys.readouterr()
     assert "\x1b" not in out + err and "Traceback" not in err
     assert err == "" if rc == 0 else (err.startswith("prismbatch: error: ") and err.count("\n") == 1)
+
+
+@pytest.mark.parametrize("case", [99, -1, 10**30, 0])
+def test_saved_case_must_be_a_case_number(tmp_path, case):
+    doc = _doc()
+    doc["records"][0]["prismbatch"]["case"] = case
+    p = _write_doc(tmp_path, doc)
+    with pytest.raises(ValueError, match=r"bad\.json: record 0: prismbatch\.case must be a case number 1\.\.11"):
+        read_replay(p)

@@ -103,6 +103,41 @@ def test_magnitudes_inside_the_range_are_scale_free():
         assert (pb.collide(sq, sq, np.zeros(3), np.eye(3), q * s, R).hit == base).all()
 
 
+@pytest.mark.parametrize("scale", [1e-11, 1e-6, 1.0, 1e6, 1e11])
+def test_float32_answers_inside_its_range_match_float64(scale):
+    # float32 compute has its own supported range (config.SUPPORTED_RANGE):
+    # inside it, answers away from the touching band are those of float64.
+    rng = np.random.default_rng(5)
+    a, b = pb.Prism.regular(7, 2.0 * scale), pb.Prism.regular(4, 1.5 * scale)
+    R = Rotation.random(2000, random_state=6).as_matrix()
+    q = rng.uniform(-3, 3, size=(2000, 3)) * scale
+    r64 = pb.collide(a, b, np.zeros(3), np.eye(3), q, R)
+    r32 = pb.collide(a, b, np.zeros(3), np.eye(3), q, R, dtype=np.float32)
+    assert 200 < r64.hit.sum() < 1800
+    assert (r32.hit != r64.hit).sum() <= 4  # only pairs within float32's 1e-5 tolerance band
+
+
+@pytest.mark.parametrize("pos", [[1e20, 0, -1], [0, 0, -1e39], [2e12, 0, 0]])
+def test_float32_positions_beyond_its_range_raise(pos):
+    sq = pb.Prism.regular(4, 1.0)
+    down = np.diag([1.0, -1.0, -1.0])
+    with pytest.raises(ValueError, match=r"pos_b\[0\] has a coordinate .* outside the supported range \|x\| <= 1e\+12 for float32"):
+        pb.collide(sq, sq, [0, 0, 0], down, np.array([pos, pos]), np.eye(3), dtype=np.float32)
+    # (1e39 is inf once the caller has rounded it to float32.)
+    with pytest.raises(ValueError, match=r"pos_b (has a coordinate .* outside the supported range \|x\| <= 1e\+12|contains non-finite)"):
+        pb.Collider(sq, sq, dtype=np.float32).collide_pair(np.zeros(3, np.float32), down.astype(np.float32),
+                                                          np.array(pos, np.float32), np.eye(3, dtype=np.float32))
+    assert pb.collide(sq, sq, [0, 0, 0], down, [1e20, 0, -1], np.eye(3)).hit.tolist() == [False]  # float64: fine
+
+
+@pytest.mark.parametrize("r", [1e13, 1e-13])
+def test_float32_polygons_beyond_its_range_raise(r):
+    p = pb.Prism.regular(5, r)
+    with pytest.raises(ValueError, match="outside the supported range for float32"):
+        pb.collide(p, p, np.zeros(3), np.eye(3), np.zeros(3), np.eye(3), dtype=np.float32)
+    pb.collide(p, p, np.zeros(3), np.eye(3), np.zeros(3), np.eye(3))  # float64 takes it
+
+
 @pytest.mark.parametrize("bad", [1e308, -1.7e308, 2 * MAX_MAGNITUDE, np.inf, np.nan])
 def test_positions_outside_the_range_raise(bad):
     a, b = pb.Prism.regular(5, 2.0), pb.Prism.regular(6, 2.5)
@@ -155,20 +190,30 @@ def test_read_only_inputs_are_accepted_everywhere():
     assert pb.collide(a, b, many, rot, pb_, np.eye(3)).hit.all()
 
 
-def test_fork_after_a_parallel_call_gives_working_children(tmp_path):
+@pytest.mark.parametrize("parent, child", [("collide", "collide"), ("collide", "detach"), ("detach", "collide")])
+def test_fork_after_a_parallel_call_gives_working_children(tmp_path, parent, child):
+    # detach chooses its kernel through the same fork guard as collide.
     script = tmp_path / "fork_pool.py"
-    script.write_text(textwrap.dedent("""
+    script.write_text(textwrap.dedent(f"""
         import multiprocessing as mp
         import numpy as np
         import prismbatch as pb
+        from prismbatch.control import detach
         a, b = pb.Prism.regular(5, 2.0), pb.Prism.regular(6, 2.5)
+        down = np.diag([1.0, -1.0, -1.0])
         P = np.random.default_rng(0).normal(size=(5000, 3))
-        def work(_):
+        def collide(_):
             return int(pb.collide(a, b, np.zeros(3), np.eye(3), P, np.eye(3), parallel=True).hit.sum())
+        def detach_(_):
+            inside = np.column_stack([0.1 * P[:, :2], -np.abs(P[:, 2])])
+            d = detach(a, inside, np.zeros(3), down, np.eye(3), np.ones(len(P)), parallel=True)
+            return int(d.contact_class.sum())
+        work = {{"collide": collide, "detach": detach_}}
         if __name__ == "__main__":
-            first = work(0)
+            work["{parent}"](0)  # threads started in the parent
             with mp.get_context("fork").Pool(2) as pool:
-                print(first, pool.map(work, range(3)))
+                in_children = pool.map(work["{child}"], range(3))
+            print(work["{child}"](0), in_children)
     """))
     out = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=600,
                          env=dict(os.environ))
