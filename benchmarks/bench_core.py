@@ -168,7 +168,7 @@ def _load_reference():
 # ---------------------------------------------------------------------------
 def bench_cell(n, pose_name, args, all_threads, ref, log, waiter):
     import prismbatch as pb
-    from prismbatch.peers import CoalPeer, FCLPeer, fcl_standin_length
+    from prismbatch.lab.peers import CoalPeer, FCLPeer, fcl_standin_length
 
     load_start = _loadavg()
     snap0 = _cpu_snapshot()
@@ -233,7 +233,7 @@ def bench_cell(n, pose_name, args, all_threads, ref, log, waiter):
 
     # --- kernel only (private API: no pose validation/conversion); diagnostic ---
     try:
-        from prismbatch import _batch
+        from prismbatch._kernels import batch as _batch
         kp = [np.ascontiguousarray(x, dtype=np.float64) for x in full]
         for key, k_threads, parallel in (("kernel_1t_status", 1, False),
                                          ("kernel_all_status", all_threads, True)):
@@ -711,7 +711,7 @@ def main(argv=None):
         "notes": [
             "pb 1T = Collider.collide(parallel=False) under numba.set_num_threads(1)",
             "pb all-T = Collider.collide(parallel=True) with all Numba threads",
-            "kernel-only = prismbatch._batch.run (private), no pose validation/conversion",
+            "kernel-only = prismbatch._kernels.batch.run (private), no pose validation/conversion",
             "1-pair call = latency of Collider.collide on a single pair (1 thread); collide_pair call = latency of Collider.collide_pair",
             "thread use = process CPU time / wall time over >= 0.4 s of back-to-back calls",
             "peers: per query 2x setTransform + collide with fresh request/result; objects built once",

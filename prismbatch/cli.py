@@ -6,12 +6,12 @@ import argparse
 import sys
 
 from . import __version__
-from .experiment import PLANTS, PRISMS
+from .lab.experiment import PLANTS, PRISMS
 
 
 def _demo(args):
     from .collide import CASES
-    from .demo import run_demo
+    from .lab.demo import run_demo
 
     res = run_demo(n_pairs=args.pairs, n_vertices=args.vertices, distribution=args.distribution,
                    seed=args.seed, contact=args.contact, parallel=args.threads != 1,
@@ -30,7 +30,7 @@ def _demo(args):
 
 
 def _experiment(args):
-    from .experiment import format_summary, run_experiment, write_experiment
+    from .lab.experiment import format_summary, run_experiment, write_experiment
 
     res = run_experiment(args.prism, vertices=args.vertices, plant=args.plant, duration=args.duration, dt=args.dt,
                          max_speed=args.max_speed, mass=args.mass, damping=args.damping, detach_tol=args.detach_tol,
@@ -73,7 +73,7 @@ def _print_paths(paths):
 
 
 def _study(args):
-    from .study import format_study, run_study, write_study
+    from .lab.study import format_study, run_study, write_study
 
     res = run_study(vertices=args.vertices, cases=args.cases or tuple(range(1, 12)), poses_per_case=args.poses,
                     repeats=args.repeats, batch_pairs=args.batch_pairs, peers=args.peers, seed=args.seed,
@@ -87,7 +87,7 @@ def _study(args):
 
 
 def _validate(args):
-    from .validate import format_validation, validate, write_validation
+    from .lab.validate import format_validation, validate, write_validation
 
     if args.fcl_fraction is not None and not args.fcl:
         raise ValueError("--fcl-fraction and --no-fcl contradict each other")
@@ -114,7 +114,7 @@ def _validate(args):
 
 
 def _workprec(args):
-    from .workprec import format_work_precision, run_work_precision, write_work_precision
+    from .lab.workprec import format_work_precision, run_work_precision, write_work_precision
 
     res = run_work_precision(vertices=args.vertices, n_poses=args.poses, radius=args.radius, repeats=args.repeats,
                              seed=args.seed, quick=args.quick, progress=_show_progress(args), fcl=args.fcl)
@@ -126,7 +126,7 @@ def _workprec(args):
 
 
 def _reproduce(args):
-    from .reproduce import run_reproduce
+    from .lab.reproduce import run_reproduce
 
     res = run_reproduce(args.out, quick=args.quick, seed=args.seed, parts=args.parts or None,
                         progress_bar=_show_progress(args))
@@ -148,7 +148,7 @@ def _show_progress(args):
 
 
 def _replay(args):
-    from .replay import replay
+    from .lab.replay import replay
 
     try:
         replay(args.file, indices=args.record)

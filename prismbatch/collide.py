@@ -7,8 +7,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from . import _batch
-from ._projection import CASES
+from ._kernels import batch as _batch
+from ._kernels.projection import CASES
 from .config import MAX_RTOL, SUPPORTED_RANGE
 from .poses import ORTHO_HINT, as_pose, common_batch_size, ortho_tolerance, real_scalar
 from .shapes import as_prism_set
@@ -192,13 +192,13 @@ class Collider:
         Returns
         -------
         dict
-            Every field of ``prismbatch._projection.TRACE_FIELDS`` (a's centred
+            Every field of ``prismbatch._kernels.projection.TRACE_FIELDS`` (a's centred
             frame: b's position ``p`` and rotation ``R``, the tolerance, Δ3,
             the reach, the coarse-test quantities, the early-accept depth, the
             GJK outcome, ...; NaN where the test never got there), plus
             ``exit_reason`` (text), ``hit``, ``case`` and ``contact`` (world).
         """
-        from ._projection import EXITS, TRACE_FIELDS, TRACE_SIZE
+        from ._kernels.projection import EXITS, TRACE_FIELDS, TRACE_SIZE
 
         if self._a_per or self._b_per:
             raise TypeError("explain needs single Prism shapes, not PrismSets")

@@ -31,8 +31,8 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit, prange
 
-from ._batch import _variant, use_parallel
-from ._planar import point_polygon_distance, wedge_edge
+from ._kernels.batch import _variant, use_parallel
+from ._kernels.planar import point_polygon_distance, wedge_edge
 from .config import NOT_A_CONTACT_RTOL
 from .poses import _as_real_array, _where, as_pose, as_rotations, common_batch_size, real_scalar
 from .shapes import as_prism_set

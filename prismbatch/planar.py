@@ -8,7 +8,7 @@ point within ``tol`` of both shapes (NaN when there is no hit).
 The point test is the paper's polar wedge search (binary search, O(log n)).
 The other four run the same 2-D GJK the prism kernels use, over O(log n)
 support queries, instead of the paper's vertex-set scans and edge walk: one
-exact piece of code for every shape (see :mod:`prismbatch._planar`).
+exact piece of code for every shape (see :mod:`prismbatch._kernels.planar`).
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ._planar import edge_search_tables, gjk, point_polygon_distance
+from ._kernels.planar import edge_search_tables, gjk, point_polygon_distance
 from .shapes import Prism, PrismSet
 
 __all__ = ["point_polygon", "segment_polygon", "halfline_polygon", "strip_polygon", "polygon_polygon"]

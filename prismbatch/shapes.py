@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._planar import edge_search_tables
+from ._kernels.planar import edge_search_tables
 from .config import MAX_VERTICES, MIN_RELATIVE_AREA, MIN_RELATIVE_EDGE, SUPPORTED_RANGE
 from .poses import real_scalar
 

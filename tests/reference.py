@@ -1,7 +1,7 @@
 """Independent, slow, obviously-correct references for the test-suite.
 
 These functions are the ground truth the kernels are checked against, written
-for clarity, not speed. The LP (``prismbatch.exact``) shares no code with the
+for clarity, not speed. The LP (``prismbatch.lab.exact``) shares no code with the
 kernels; the 2-D brute-force references below are written for the tests only.
 
 Geometry (binding for the whole project)
@@ -27,9 +27,9 @@ from __future__ import annotations
 
 import numpy as np
 
-# The LP lives in the package (prismbatch.exact) so that `prismbatch validate`
+# The LP lives in the package (prismbatch.lab.exact) so that `prismbatch validate`
 # can use it too; it shares no code with the kernels.
-from prismbatch.exact import (  # noqa: F401
+from prismbatch.lab.exact import (  # noqa: F401
     margin_lp,
     margin_lp_batch,
     point_in_prism_residual,

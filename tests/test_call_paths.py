@@ -12,7 +12,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import prismbatch as pb
-from prismbatch.families import FAMILIES, make_family
+from prismbatch.lab.families import FAMILIES, make_family
 
 SETTINGS = settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
@@ -61,7 +61,7 @@ def test_serial_equals_parallel_and_strided_equals_contiguous(name, seed):
 @SETTINGS
 @given(name=st.sampled_from(["quaternion", "transform_4x4", "scipy_rotation"]), seed=st.integers(0, 2**31 - 1))
 def test_rotation_forms_equal_matrices(name, seed):
-    from prismbatch.families import collide_family
+    from prismbatch.lab.families import collide_family
 
     ps = make_family(name, 48, seed)
     as_given = collide_family(ps)
@@ -86,7 +86,7 @@ def test_near_touching_pairs_with_a_known_gap(name, seed):
     that (times 16) of tol or 2 tol are left out.
     """
     from prismbatch.collide import pair_scale_tolerance
-    from prismbatch.families import collide_family
+    from prismbatch.lab.families import collide_family
 
     ps = make_family(name, 64, seed)
     r = collide_family(ps)

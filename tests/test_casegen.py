@@ -1,4 +1,4 @@
-"""Case-targeted pose generators (prismbatch.casegen).
+"""Case-targeted pose generators (prismbatch.lab.casegen).
 
 Every generated pose must have the requested case, the requested mix of hits
 and misses, and hits that agree with the exact LP reference outside the
@@ -12,7 +12,7 @@ import pytest
 
 import prismbatch as pb
 from conftest import collinear_polygon, irregular_polygon
-from prismbatch.casegen import CASE_NUMBERS, EXACT_CASES, HIT_AND_MISS_CASES, case_poses
+from prismbatch.lab.casegen import CASE_NUMBERS, EXACT_CASES, HIT_AND_MISS_CASES, case_poses
 from reference import margin_lp
 
 

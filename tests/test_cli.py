@@ -6,7 +6,7 @@ import sys
 import pytest
 
 from prismbatch.cli import main
-from prismbatch.demo import run_demo
+from prismbatch.lab.demo import run_demo
 
 
 def test_help_lists_demo(capsys):

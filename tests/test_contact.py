@@ -168,7 +168,7 @@ def test_contacts_with_large_tolerance(random_pairs, rtol, atol):
 def test_serial_and_parallel_kernels_have_separate_cache_entries():
     # Numba keys its disk cache by function name and line, not by the
     # parallel flag: one shared name made one kernel silently run as the other.
-    from prismbatch import _batch
+    from prismbatch._kernels import batch as _batch
 
     assert _batch.collide_serial.targetoptions.get("parallel") is False
     assert _batch.collide_parallel.targetoptions.get("parallel") is True

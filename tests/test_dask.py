@@ -1,4 +1,4 @@
-"""prismbatch.validate on a Dask LocalCluster gives exactly the in-process results."""
+"""prismbatch.lab.validate on a Dask LocalCluster gives exactly the in-process results."""
 
 from __future__ import annotations
 
@@ -37,7 +37,7 @@ def test_missing_dask_names_the_extra(monkeypatch):
 
 
 def test_run_chunks_needs_a_target():
-    from prismbatch._dask import run_chunks
+    from prismbatch.lab.cluster import run_chunks
 
     with pytest.raises(ValueError, match="scheduler"):
         run_chunks({}, [], lambda s, c: None)

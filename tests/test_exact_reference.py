@@ -1,4 +1,4 @@
-"""Self-tests of the exact reference (prismbatch.exact_gap) on cases with known answers.
+"""Self-tests of the exact reference (prismbatch.lab.exact_gap) on cases with known answers.
 
 The reference decides every pair of the exactness checks, so it is checked
 here on its own: exactly representable scenes with a known gap (stacked,
@@ -17,7 +17,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from prismbatch.exact_gap import check_contact, exact_quat_matrix, gap_bounds, judge_pair
+from prismbatch.lab.exact_gap import check_contact, exact_quat_matrix, gap_bounds, judge_pair
 
 pytest.importorskip("highspy")
 

@@ -17,7 +17,7 @@ import pytest
 
 from prismbatch.cli import main
 from prismbatch.control import CONTACT_CLASSES
-from prismbatch.experiment import (FIG10_TIMES, format_summary, projected_contour, run_experiment,
+from prismbatch.lab.experiment import (FIG10_TIMES, format_summary, projected_contour, run_experiment,
                                    write_experiment)
 
 VERTS = 360

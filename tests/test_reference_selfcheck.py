@@ -307,7 +307,7 @@ def _random_cases(seed=12345, n_hex=150, n_rand=150):
 @pytest.fixture(scope="module")
 def random_margins():
     """(cases, infinite margins, stand-in lengths, finite-stand-in margins)."""
-    from prismbatch.peers import fcl_standin_length
+    from prismbatch.lab.peers import fcl_standin_length
 
     cases = _random_cases()
     m_inf, m_fin, lengths = [], [], []
@@ -343,21 +343,21 @@ def _check_peer_signs(peer_cls, random_margins):
 
 def test_margin_vs_fcl(random_margins):
     pytest.importorskip("fcl")
-    from prismbatch.peers import FCLPeer
+    from prismbatch.lab.peers import FCLPeer
 
     _check_peer_signs(FCLPeer, random_margins)
 
 
 def test_margin_vs_coal(random_margins):
     pytest.importorskip("coal")
-    from prismbatch.peers import CoalPeer
+    from prismbatch.lab.peers import CoalPeer
 
     _check_peer_signs(CoalPeer, random_margins)
 
 
 def test_fcl_batch_matches_single(random_margins):
     pytest.importorskip("fcl")
-    from prismbatch.peers import FCLPeer
+    from prismbatch.lab.peers import FCLPeer
 
     cases, m_inf, lengths, m_fin = random_margins
     A, B = cases[0][0], cases[0][3]
@@ -375,7 +375,7 @@ def test_fcl_batch_matches_single(random_margins):
 def test_fcl_separation_bound(random_margins):
     """For separated finite stand-ins, fcl's distance g >= 2 |margin|."""
     fcl = pytest.importorskip("fcl")
-    from prismbatch.peers import fcl_prism
+    from prismbatch.lab.peers import fcl_prism
 
     cases, m_inf, lengths, m_fin = random_margins
     checked = 0
@@ -397,7 +397,7 @@ def test_standin_rule_known_limitation():
     Thin prisms 1 apart whose axes converge at 0.02 rad first meet ~50 away
     from the end faces, far beyond L = 4 (|dp| + R_a + R_b) ~ 4.6.
     """
-    from prismbatch.peers import fcl_standin_length
+    from prismbatch.lab.peers import fcl_standin_length
 
     sq = 0.1 * SQ
     d = np.array([-0.02, 0.0, 1.0])

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import prismbatch as pb
-from prismbatch._planar import extreme_vertex
+from prismbatch._kernels.planar import extreme_vertex
 from reference import margin_lp, point_in_prism_residual
 
 # GJK stalled on a long Minkowski edge (direction lost to rounding) and

@@ -1,4 +1,4 @@
-"""Replay files and the step-by-step trace (prismbatch.replay, Collider.explain)."""
+"""Replay files and the step-by-step trace (prismbatch.lab.replay, Collider.explain)."""
 
 import json
 
@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 import prismbatch as pb
-from prismbatch._projection import EXITS
-from prismbatch.casegen import case_poses
-from prismbatch.replay import make_record, read_replay, replay, write_replay
+from prismbatch._kernels.projection import EXITS
+from prismbatch.lab.casegen import case_poses
+from prismbatch.lab.replay import make_record, read_replay, replay, write_replay
 
 
 def _pairs():

@@ -15,7 +15,7 @@ pytest.importorskip("fcl")
 pytest.importorskip("scipy")
 
 from prismbatch.cli import main  # noqa: E402
-from prismbatch.reproduce import PARTS  # noqa: E402
+from prismbatch.lab.reproduce import PARTS  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 NOTEBOOK = ROOT / "notebooks" / "reproduce.ipynb"

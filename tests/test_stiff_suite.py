@@ -1,4 +1,4 @@
-"""The stiff and extreme suite (prismbatch.stiff): its ground truth, its verdicts, its report.
+"""The stiff and extreme suite (prismbatch.lab.stiff): its ground truth, its verdicts, its report.
 
 The constructions are checked against the independent LP; the suite's
 verdicts against the documented tolerances; and the suite must notice
@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import prismbatch as pb
-import prismbatch.stiff as st
+import prismbatch.lab.stiff as st
 from reference import margin_lp, point_in_prism_residual
 
 

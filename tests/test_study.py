@@ -1,4 +1,4 @@
-"""The timing study (prismbatch.study) on a tiny scene: structure, consistency, files.
+"""The timing study (prismbatch.lab.study) on a tiny scene: structure, consistency, files.
 
 No timing thresholds: only that every measurement is there, positive and
 internally consistent, that the peers agree with prismbatch away from touching
@@ -13,8 +13,8 @@ import pytest
 
 import prismbatch as pb
 from prismbatch import study
-from prismbatch.casegen import CASE_NUMBERS, EXACT_CASES, HIT_AND_MISS_CASES, case_poses
-from prismbatch.study import fit_growth, format_study, run_study, write_study
+from prismbatch.lab.casegen import CASE_NUMBERS, EXACT_CASES, HIT_AND_MISS_CASES, case_poses
+from prismbatch.lab.study import fit_growth, format_study, run_study, write_study
 from reference import margin_lp
 
 VERTS = (8, 24, 60)
@@ -230,7 +230,7 @@ def test_missing_cases_are_reported():
 
 
 def test_missing_peer_is_a_note(monkeypatch):
-    from prismbatch.peers import CoalPeer
+    from prismbatch.lab.peers import CoalPeer
 
     def no_coal():
         raise ImportError("coal is not installed (simulated)")

@@ -1,10 +1,10 @@
-"""prismbatch.validate: a short Monte Carlo run over every distribution, the replay
+"""prismbatch.lab.validate: a short Monte Carlo run over every distribution, the replay
 round trip, chunking invariance and the stand-in length rule.
 
 The run's own verdicts are not trusted blindly: records are re-checked with
 an independent re-run of prismbatch and the LP, regenerated from their seeds,
 and the vectorised contact residual is compared with
-``prismbatch.exact.point_in_prism_residual``.
+``prismbatch.lab.exact.point_in_prism_residual``.
 """
 
 from __future__ import annotations
@@ -21,8 +21,8 @@ pytest.importorskip("fcl")
 
 import prismbatch as pb  # noqa: E402
 from prismbatch import validate as V  # noqa: E402
-from prismbatch.exact import margin_lp, point_in_prism_residual  # noqa: E402
-from prismbatch.peers import fcl_standin_length, standin_lengths  # noqa: E402
+from prismbatch.lab.exact import margin_lp, point_in_prism_residual  # noqa: E402
+from prismbatch.lab.peers import fcl_standin_length, standin_lengths  # noqa: E402
 
 N_SHORT = 5000  # per distribution: 20,000 pairs in all
 
@@ -85,7 +85,7 @@ def test_replay_round_trip(short_run, tmp_path):
     regenerating the block from (config, distribution, block) gives the
     recorded inputs bit for bit."""
     paths = V.write_validation(short_run, tmp_path)
-    from prismbatch.replay import read_replay
+    from prismbatch.lab.replay import read_replay
 
     meta, recs = read_replay(paths["replay"])
     assert meta["seed"] == short_run.config["seed"]
@@ -110,7 +110,7 @@ def test_replay_round_trip(short_run, tmp_path):
             inside = abs(m) <= rec["band"]
             assert (rec["kind"] == "inside band") == inside
         if ref["fcl"] is not None:
-            from prismbatch.peers import FCLPeer
+            from prismbatch.lab.peers import FCLPeer
 
             assert FCLPeer(a.xy, b.xy, ref["standin_length"]).collide(*P) == ref["fcl"]
         key = (rec["distribution"], rec["block"])
@@ -159,7 +159,7 @@ def _max_depth_lp(xy_a, pa, ra, xy_b, pb_, rb):
     if they do not meet. Plain half-space constraints, no margin."""
     from scipy.optimize import linprog
 
-    from prismbatch.exact import polygon_halfplanes
+    from prismbatch.lab.exact import polygon_halfplanes
 
     A, b = [], []
     for xy, p, R in ((xy_a, pa, ra), (xy_b, pb_, rb)):
@@ -225,7 +225,7 @@ def test_standin_rule_fixes_slowly_converging_axes():
     assert margin_lp(sq, pa, I3, sq, pb_, rb, length_a=old, length_b=old) < 0  # the failure
     L = standin_lengths(sq, sq, pa, I3, pb_, rb).length[0]
     assert margin_lp(sq, pa, I3, sq, pb_, rb, length_a=L, length_b=L) == pytest.approx(m_inf, abs=1e-9)
-    from prismbatch.peers import FCLPeer
+    from prismbatch.lab.peers import FCLPeer
 
     assert FCLPeer(sq, sq, L).collide(pa, I3, pb_, rb)
     assert not FCLPeer(sq, sq, old).collide(pa, I3, pb_, rb)
@@ -275,7 +275,7 @@ def test_bad_arguments(kw, match):
 
 
 def test_stiff_hook(tmp_path, monkeypatch):
-    """validate(stiff=...) calls prismbatch.stiff.run_stiff_suite and the report carries its section."""
+    """validate(stiff=...) calls prismbatch.lab.stiff.run_stiff_suite and the report carries its section."""
     calls = []
 
     class Report:
@@ -295,9 +295,9 @@ def test_stiff_hook(tmp_path, monkeypatch):
         calls.append((quick, seed))
         return Report()
 
-    fake = types.ModuleType("prismbatch.stiff")
+    fake = types.ModuleType("prismbatch.lab.stiff")
     fake.run_stiff_suite = run_stiff_suite
-    monkeypatch.setitem(sys.modules, "prismbatch.stiff", fake)
+    monkeypatch.setitem(sys.modules, "prismbatch.lab.stiff", fake)
     r = V.validate(50, distributions=("facing",), vertices=(5,), fcl=False, lp_samples=0, stiff="quick",
                    seed=4, progress=False)
     assert calls == [(True, 4)]

@@ -12,9 +12,9 @@ import math
 import numpy as np
 import pytest
 
-from prismbatch.exact import margin_lp, point_in_prism_residual, polygon_halfplanes
+from prismbatch.lab.exact import margin_lp, point_in_prism_residual, polygon_halfplanes
 from prismbatch.shapes import Prism
-from prismbatch.workprec import (METHODS, fit_order, format_work_precision, geometric_error,
+from prismbatch.lab.workprec import (METHODS, fit_order, format_work_precision, geometric_error,
                                  near_contact_poses, noise_floor, run_work_precision, vertices_needed,
                                  wilson_interval, write_work_precision)
 

@@ -4,7 +4,7 @@ General-purpose collision libraries have no semi-infinite prism, so each
 prism is stood in for by a FINITE convex extrusion of its polygon from the
 end face (local z = 0) to local z = L along +z; see ``fcl_standin_length``
 for the old rule (kept for the benchmarks) and ``standin_lengths`` for the
-sound per-pair rule used by :func:`prismbatch.validate`.
+sound per-pair rule used by :func:`prismbatch.lab.validate`.
 
 The optional dependencies are imported lazily inside the functions, so
 importing this module never requires them.

@@ -7,10 +7,10 @@ import time
 import numba
 import numpy as np
 
-from ._report import progress as progress_bar
-from .collide import CASES, Collider
-from .sampling import DISTRIBUTIONS
-from .shapes import Prism
+from .report import progress as progress_bar
+from ..collide import CASES, Collider
+from ..sampling import DISTRIBUTIONS
+from ..shapes import Prism
 
 __all__ = ["run_demo"]
 

@@ -9,7 +9,7 @@ b ∩ {z >= 0} along z meets P_a (NOTES.md). With
     h = (R20, R21), c = R22 = d_a.d_b (the paper's Δ1), w = (R02, R12),
     z(q, t) = p_z + h.q + c t,   Δ3 = max_q z(q, 0),
 
-Q is the spec shape of :mod:`prismbatch._planar` with M = R[:2, :2]. Only the
+Q is the spec shape of :mod:`prismbatch._kernels.planar` with M = R[:2, :2]. Only the
 part of Q within reach of P_a matters, so t is capped at
 T = (|p_xy| + R_a + R_b + 2 tol) / |w|, which keeps every coordinate bounded
 whatever the angle between the axes (no tan α or sec²α anywhere).
@@ -26,7 +26,7 @@ import math
 
 from numba import njit
 
-from ._planar import extreme_vertex, gjk, point_polygon_distance
+from .planar import extreme_vertex, gjk, point_polygon_distance
 
 # Case numbers. 1-9 are the paper's; 10 and 11 extend it to d_a.d_b > 0.
 CASE_ABOVE = 1

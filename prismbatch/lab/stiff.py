@@ -26,10 +26,10 @@ along its normal-cone bisector) and a pair of witness points at the
 constructed distance, so the signed gap is known to the rounding of float64
 coordinates (~1e-15 S, far below the tolerance 1e-9 S). Negative gaps are
 overlaps by construction. The ``*_lp`` families use random poses and the exact
-LP margin (:func:`prismbatch.exact.margin_lp`), trusted outside
+LP margin (:func:`prismbatch.lab.exact.margin_lp`), trusted outside
 ``max(tol, 1e-7 S)``; where prismbatch disagrees with the LP, certificates
 decide: a hit is accepted when its contact point lies in both bodies within
-``2 tol`` (:func:`prismbatch.exact.point_in_prism_residual`), a miss when a
+``2 tol`` (:func:`prismbatch.lab.exact.point_in_prism_residual`), a miss when a
 separating plane (face normals and cross products of edges and axes, the
 finiteness conditions ``n . d_a <= 0 <= n . d_b`` checked in exact rational
 arithmetic) shows a gap above ``tol``. The LP is not used at all for axes
@@ -61,10 +61,10 @@ from fractions import Fraction
 
 import numpy as np
 
-from ._report import run_metadata, write_csv, write_json
-from .collide import DEFAULT_RTOL, Collider
+from .report import run_metadata, write_csv, write_json
+from ..collide import DEFAULT_RTOL, Collider
 from .exact import margin_lp
-from .shapes import Prism, PrismSet, validate_polygon
+from ..shapes import Prism, PrismSet, validate_polygon
 
 __all__ = ["StiffReport", "run_stiff_suite", "write_stiff_report", "FAMILIES", "PairSet", "pair_scale",
            "face_pairs", "side_pairs", "coplanar_pairs", "random_polygon", "sliver_polygon",
@@ -540,7 +540,7 @@ def _halfplanes(xy):
 
 def _residual(xy, pos, rot, x):
     """Largest violation of a world point against one body's half-spaces (<= 0: inside); as
-    :func:`prismbatch.exact.point_in_prism_residual`, vectorised for large polygons."""
+    :func:`prismbatch.lab.exact.point_in_prism_residual`, vectorised for large polygons."""
     local = np.asarray(rot, float).T @ (np.asarray(x, float) - np.asarray(pos, float))
     n, h = _halfplanes(xy)
     return float(max(-local[2], np.max(n @ local[:2] - h)))
@@ -720,7 +720,7 @@ def _fam_parallel_lp(rng, n, tilt):
 
 
 def _free_lp(rng, A, B, scale=1.0):
-    from .sampling import random_rotations
+    from ..sampling import random_rotations
 
     n = len(A)
     pa = rng.uniform(-1.5, 1.5, (n, 3)) * scale
@@ -962,7 +962,7 @@ class StiffReport:
     seconds : float
         Wall time of the run (noisy: shared machine).
     meta : dict
-        :func:`prismbatch._report.run_metadata`.
+        :func:`prismbatch.lab.report.run_metadata`.
     """
 
     rows: list
@@ -1023,7 +1023,7 @@ class StiffReport:
              "",
              "Ground truth: *construction* families have a known separating plane and two witness points "
              "at the constructed gap (exact to the rounding of float64 coordinates, ~1e-15 S); *LP* "
-             "families use random poses and the exact LP margin (`prismbatch.exact.margin_lp`, trusted "
+             "families use random poses and the exact LP margin (`prismbatch.lab.exact.margin_lp`, trusted "
              "outside max(tol, 1e-7 S)), overruled only by certificates (a contact inside both bodies "
              "within 2 tol; a separating plane, its finiteness signs checked in exact arithmetic), and not "
              "used at all for axes pointing the same way within 1e-8 rad. S = R_a + R_b + |c_b - c_a|; "
@@ -1108,7 +1108,7 @@ def run_stiff_suite(*, quick=False, seed=0, dtypes=("float64", "float32"), progr
     if unknown or not names:
         raise ValueError(f"families: unknown {unknown} (choose from {sorted(FAMILIES)})" if unknown
                          else "families is empty")
-    from ._report import progress as _progress
+    from .report import progress as _progress
 
     n_con, n_lp = _SIZES[bool(quick)]
     t0 = time.perf_counter()

@@ -2,7 +2,7 @@
 
 :func:`validate` draws ``n_pairs`` pose pairs from each named distribution,
 runs prismbatch on all of them, python-fcl on finite stand-ins (all pairs or a
-subsample) and the exact signed-margin LP (:func:`prismbatch.exact.margin_lp`)
+subsample) and the exact signed-margin LP (:func:`prismbatch.lab.exact.margin_lp`)
 on a random subsample plus every pair where prismbatch and FCL disagree, and
 counts, per case, where they agree. :func:`format_validation` gives the
 terminal summary, :func:`write_validation` the Markdown report, CSV tables,
@@ -36,7 +36,7 @@ Disagreements with ``|margin| <= band`` are "inside band" (allowed, counted).
 Stand-ins
 ---------
 FCL has no semi-infinite prism: each pair uses extrusions of length
-``standin_lengths(...).length`` (see :func:`prismbatch.peers.standin_lengths`:
+``standin_lengths(...).length`` (see :func:`prismbatch.lab.peers.standin_lengths`:
 provably long enough except for axes within ~1e-6 rad of parallel, flagged
 unsound), rounded up to a power of two so that FCL objects can be reused
 within a block. The rule is checked: wherever the LP is run with margin
@@ -65,8 +65,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .collide import DEFAULT_RTOL, Collider, pair_scale_tolerance
-from .shapes import Prism
+from ..collide import DEFAULT_RTOL, Collider, pair_scale_tolerance
+from ..shapes import Prism
 
 __all__ = ["validate", "ValidationResult", "format_validation", "write_validation", "run_chunk",
            "generate_block", "make_config", "BLOCK_SIZE", "DISTRIBUTION_NAMES", "SHAPE_KINDS",
@@ -81,7 +81,7 @@ DISTRIBUTION_NAMES = ("facing", "free", "near-contact", "degenerate")
 #: Shape families: regular n-gons, random convex polygons, cylinders fitted by n-gons.
 SHAPE_KINDS = ("regular", "random", "cylinder")
 
-#: Cases the ``degenerate`` distribution builds exactly (prismbatch.casegen).
+#: Cases the ``degenerate`` distribution builds exactly (prismbatch.lab.casegen).
 DEGENERATE_CASES = (2, 3, 4, 7, 8)
 
 #: Record kinds, most severe first (a pair with several gets the first as "kind").
@@ -229,7 +229,7 @@ def _near_contact(sa, sb, m, rng, rtol):
     [0.1, 1e4] x rtol x S, inward or outward with equal odds. The set of hitting
     translations along a line is an interval, so the boundary is unique.
     """
-    from .sampling import facing_poses, free_poses
+    from ..sampling import facing_poses, free_poses
 
     R = max(sa.radius, sb.radius)
     h = m // 2
@@ -266,7 +266,7 @@ def _near_contact(sa, sb, m, rng, rtol):
 
 
 def _degenerate(sa, sb, m, rng, block):
-    """Exact cases 2, 3, 4, 7, 8 (prismbatch.casegen), half hits; a random world frame on odd blocks."""
+    """Exact cases 2, 3, 4, 7, 8 (prismbatch.lab.casegen), half hits; a random world frame on odd blocks."""
     from .casegen import case_poses
 
     k = len(DEGENERATE_CASES)
@@ -334,10 +334,10 @@ def generate_block(config, distribution, block):
     sa, sb = _block_shapes(config, block, rng_shape)
     notes = {}
     if distribution == "facing":
-        from .sampling import facing_poses
+        from ..sampling import facing_poses
         P = facing_poses(m, rng_pose, radius=max(sa.radius, sb.radius))
     elif distribution == "free":
-        from .sampling import free_poses
+        from ..sampling import free_poses
         P = free_poses(m, rng_pose, radius=max(sa.radius, sb.radius))
     elif distribution == "near-contact":
         *P, notes["near_contact_unseparated"] = _near_contact(sa, sb, m, rng_pose, config["rtol"])
@@ -690,7 +690,7 @@ class ValidationResult:
     execution : dict
         Scheduler, workers and thread counts.
     stiff : object or None
-        The stiff suite's report (``prismbatch.stiff``) when requested.
+        The stiff suite's report (``prismbatch.lab.stiff``) when requested.
     """
 
     config: dict
@@ -797,7 +797,7 @@ def validate(n_pairs=100_000, *, distributions=("facing", "free", "near-contact"
         Any of ``"facing"`` (the paper's scene), ``"free"`` (uniform
         rotations, centres in a box), ``"near-contact"`` (within 0.1 to 1e4
         tolerances of touching, both sides) and ``"degenerate"`` (exact cases
-        2, 3, 4, 7, 8 from :func:`prismbatch.casegen.case_poses`).
+        2, 3, 4, 7, 8 from :func:`prismbatch.lab.casegen.case_poses`).
     shapes : str or sequence of str, optional
         ``"regular"``, ``"random"`` (random convex polygons) or
         ``"cylinder"`` (circles fitted by circumscribed n-gons); a sequence is
@@ -829,7 +829,7 @@ def validate(n_pairs=100_000, *, distributions=("facing", "free", "near-contact"
         allowed and plentiful near contact). Every other record is kept; all
         are counted.
     stiff : bool or "quick", optional
-        Also run ``prismbatch.stiff.run_stiff_suite`` (in-process).
+        Also run ``prismbatch.lab.stiff.run_stiff_suite`` (in-process).
     scheduler : str, optional
         Address of an existing Dask scheduler to send chunks to.
     workers : int, optional
@@ -869,8 +869,8 @@ def validate(n_pairs=100_000, *, distributions=("facing", "free", "near-contact"
     if cfg["fcl_fraction"] > 0:
         from .peers import _import_fcl
         _import_fcl()
-    from ._report import numba_threads
-    from ._report import progress as _progress
+    from .report import numba_threads
+    from .report import progress as _progress
 
     t_start = time.perf_counter()
     compile_time = _warm(cfg["dtype"])
@@ -884,7 +884,7 @@ def validate(n_pairs=100_000, *, distributions=("facing", "free", "near-contact"
                 merger.add(run_chunk(cfg, *spec))
                 bar.update(_spec_pairs(cfg, spec))
         else:
-            from ._dask import run_chunks
+            from .cluster import run_chunks
 
             def done(spec, chunk):
                 merger.add(chunk)
@@ -1092,7 +1092,7 @@ def write_validation(result, out_dir):
     """
     from pathlib import Path
 
-    from ._report import run_metadata, write_csv, write_json
+    from .report import run_metadata, write_csv, write_json
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

@@ -1,4 +1,4 @@
-"""Dask execution of :func:`prismbatch.validate` chunks (optional extra ``[dask]``).
+"""Dask execution of :func:`prismbatch.lab.validate` chunks (optional extra ``[dask]``).
 
 Chunks travel as ``(config, distribution, first block, number of blocks)``:
 workers regenerate their pairs from the seed, so no arrays are shipped and
@@ -48,7 +48,7 @@ def run_chunks(config, specs, done, *, scheduler=None, workers=None):
     Parameters
     ----------
     config : dict
-        Validation settings (:func:`prismbatch.validate.make_config`).
+        Validation settings (:func:`prismbatch.lab.validate.make_config`).
     specs : list of tuple
         ``(distribution, first_block, n_blocks)`` per chunk.
     done : callable

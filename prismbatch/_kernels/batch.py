@@ -15,8 +15,8 @@ import numba
 import numpy as np
 from numba import njit, prange
 
-from ._projection import T_P, T_R, T_TOL, pair_test
-from .poses import first_bad_rotation
+from .projection import T_P, T_R, T_TOL, pair_test
+from ..poses import first_bad_rotation
 
 
 # error_model="numpy": with Python's ZeroDivisionError check on 1 / det the

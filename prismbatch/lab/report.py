@@ -28,7 +28,7 @@ def package_versions():
     """Versions of prismbatch, Python and the packages results depend on (None if absent)."""
     from importlib import metadata
 
-    from . import __version__
+    from .. import __version__
 
     v = {"prismbatch": __version__, "python": platform.python_version()}
     for name in ("numpy", "numba", "scipy", "python-fcl", "coal", "matplotlib", "dask", "distributed"):

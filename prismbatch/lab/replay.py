@@ -25,8 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ._projection import CASES
-from ._report import jsonable, run_metadata, write_json
+from .._kernels.projection import CASES
+from .report import jsonable, run_metadata, write_json
 
 __all__ = ["FORMAT", "VERSION", "REQUIRED_KEYS", "make_record", "write_replay", "read_replay",
            "replay_record", "format_trace", "replay"]
@@ -241,8 +241,8 @@ def _load_json(path, where):
 
 def replay_record(rec):
     """Re-run one record; returns :meth:`prismbatch.Collider.explain`'s dict."""
-    from .collide import Collider
-    from .shapes import Prism
+    from ..collide import Collider
+    from ..shapes import Prism
 
     dt = np.dtype(rec["dtype"])
     a, b = Prism(rec["shape_a"], name="shape_a"), Prism(rec["shape_b"], name="shape_b")

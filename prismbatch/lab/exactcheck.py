@@ -1,6 +1,6 @@
 """Check prismbatch against the exact rational reference on user-like pose families.
 
-For every pair of every family (:mod:`prismbatch.families`) prismbatch's
+For every pair of every family (:mod:`prismbatch.lab.families`) prismbatch's
 answer is judged at the pair's own tolerance by :func:`exact_gap.judge_pair`:
 a certified gap <= tol must be a hit, a certified gap > 2 tol must be a miss,
 and every reported contact point must lie within 2 tol of both bodies, plus
@@ -22,9 +22,9 @@ from multiprocessing import get_context
 
 import numpy as np
 
-from .collide import pair_scale_tolerance
+from ..collide import pair_scale_tolerance
 from .families import FAMILIES, collide_family, make_family
-from .shapes import Prism
+from ..shapes import Prism
 
 __all__ = ["judge_family", "run_exact_check", "markdown_table", "pair_record"]
 

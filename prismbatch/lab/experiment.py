@@ -56,8 +56,8 @@ sample (one Python call on one pose pair, as a control loop would; it
 returns the contact too) and times each call; compilation (or cache loading)
 is done before the loop and reported separately. The same trajectory is then
 replayed through one ``collide_pair`` call per sample, one batched call on all the
-samples, and python-fcl (:class:`prismbatch.peers.FCLPeer` on finite
-stand-ins of length :func:`prismbatch.peers.fcl_standin_length`, maximised
+samples, and python-fcl (:class:`prismbatch.lab.peers.FCLPeer` on finite
+stand-ins of length :func:`prismbatch.lab.peers.fcl_standin_length`, maximised
 over the trajectory), timing only the query loop.
 
 :func:`run_experiment` returns an :class:`ExperimentResult`;
@@ -75,11 +75,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ._report import new_figure, run_metadata, save_figure, write_csv, write_json
-from .collide import CASES, Collider
-from .control import CONTACT_CLASSES, detach
-from .sampling import rotation_with_axis
-from .shapes import Prism
+from .report import new_figure, run_metadata, save_figure, write_csv, write_json
+from ..collide import CASES, Collider
+from ..control import CONTACT_CLASSES, detach
+from ..sampling import rotation_with_axis
+from ..shapes import Prism
 
 __all__ = ["run_experiment", "write_experiment", "format_summary", "ExperimentResult", "projected_contour",
            "PRISMS", "PLANTS", "PAPER", "FIG10_TIMES"]
@@ -510,7 +510,7 @@ def _fmt_t(x):
 
 def format_summary(res):
     """The run's summary as text lines (printed by ``prismbatch experiment``)."""
-    from . import __version__
+    from .. import __version__
 
     p, s, tm = res.params, res.summary, res.timing
     lines = []

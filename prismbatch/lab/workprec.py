@@ -62,7 +62,7 @@ Methods (the same poses for every method)
   one Python call per pose pair (the single-query latency; it also returns
   the contact point).
 * ``fcl_ngon``: python-fcl (``fcl.Convex``, default GJK solver libccd) on
-  finite stand-ins of both n-gon prisms (:class:`prismbatch.peers.FCLPeer`).
+  finite stand-ins of both n-gon prisms (:class:`prismbatch.lab.peers.FCLPeer`).
 * ``fcl_cylinder``: python-fcl's own ``fcl.Cylinder(r, L)`` as the
   exact-shape peer against b's finite stand-in; FCL's cylinder is centred on
   its origin along its local z, so it is shifted by ``L/2`` along d_a to put
@@ -76,7 +76,7 @@ Its misclassification rate therefore depends on the scene's units; with
 r = 1 it plateaus at the fraction of poses with overlaps below about 1e-6 r.
 
 Both FCL rows use one stand-in length ``L``, the largest
-:func:`prismbatch.peers.fcl_standin_length` over the poses. Truncation cannot
+:func:`prismbatch.lab.peers.fcl_standin_length` over the poses. Truncation cannot
 change a label here: b's vertex that makes a hit lies within ``|g|`` of a's
 end face, and shrinking bodies keeps misses.
 
@@ -140,11 +140,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ._report import (new_figure, package_versions, progress as _progress, run_metadata, save_figure,
+from .report import (new_figure, package_versions, progress as _progress, run_metadata, save_figure,
                       write_csv, write_json)
-from .collide import DEFAULT_RTOL, Collider, pair_scale_tolerance
-from .sampling import AXIS_DOWN
-from .shapes import Prism
+from ..collide import DEFAULT_RTOL, Collider, pair_scale_tolerance
+from ..sampling import AXIS_DOWN
+from ..shapes import Prism
 
 __all__ = ["run_work_precision", "write_work_precision", "format_work_precision", "plot_work_precision",
            "WorkPrecisionResult", "NearContactPoses", "near_contact_poses", "wilson_interval",
@@ -964,7 +964,7 @@ def plot_work_precision(result, out_dir, *, stem="workprec"):
     list of str
         ``{stem}_error_vs_time`` and ``{stem}_error_vs_n``, PNG and SVG.
     """
-    from ._report import cpu_name  # noqa: PLC0415
+    from .report import cpu_name  # noqa: PLC0415
 
     labels = method_labels(result.versions)
     s = result.settings

@@ -10,7 +10,7 @@ chosen gap of a fraction of the touching tolerance on both sides of it (from
 -0.5 tol, overlapping, to 10 tol), where errors of a collision test live.
 
 The generators only place pairs; the verdict comes from the exact reference
-(:mod:`prismbatch.exact_gap`). Needs numpy; the ``scipy`` family needs scipy.
+(:mod:`prismbatch.lab.exact_gap`). Needs numpy; the ``scipy`` family needs scipy.
 """
 
 from __future__ import annotations
@@ -19,9 +19,9 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .collide import pair_scale_tolerance
-from .sampling import random_rotations
-from .shapes import Prism
+from ..collide import pair_scale_tolerance
+from ..sampling import random_rotations
+from ..shapes import Prism
 
 __all__ = ["PairSet", "FAMILIES", "make_family", "collide_family"]
 
@@ -299,8 +299,8 @@ def make_family(name, n, seed):
 
 def collide_family(ps, **kwargs):
     """Call :func:`prismbatch.collide` on a :class:`PairSet` in the form a user would."""
-    from .collide import collide
-    from .shapes import PrismSet
+    from ..collide import collide
+    from ..shapes import PrismSet
 
     A, B = PrismSet(ps.xy_a), PrismSet(ps.xy_b)
     if ps.form == "transform":

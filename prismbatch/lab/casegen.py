@@ -40,9 +40,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .collide import Collider
-from .sampling import AXIS_DOWN, random_rotations, spins_about_z
-from .shapes import Prism
+from ..collide import Collider
+from ..sampling import AXIS_DOWN, random_rotations, spins_about_z
+from ..shapes import Prism
 
 __all__ = ["case_poses", "CASE_NUMBERS", "EXACT_CASES", "HIT_AND_MISS_CASES"]
 
@@ -425,7 +425,7 @@ def case_poses(case, n, shape_a, shape_b, rng=None, *, hit_fraction=0.5, world_t
     Examples
     --------
     >>> import prismbatch as pb
-    >>> from prismbatch.casegen import case_poses
+    >>> from prismbatch.lab.casegen import case_poses
     >>> a, b = pb.Prism.regular(5, 2.0), pb.Prism.regular(6, 2.5)
     >>> poses = case_poses(7, 100, a, b, 0)
     >>> r = pb.collide(a, b, *poses)

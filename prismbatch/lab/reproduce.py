@@ -1,10 +1,10 @@
 """``prismbatch reproduce``: every result of the project in one output folder.
 
-Runs, in order, a short Monte Carlo validation (:mod:`prismbatch.validate`,
+Runs, in order, a short Monte Carlo validation (:mod:`prismbatch.lab.validate`,
 with the stiff suite), the timing study against python-fcl and coal
-(:mod:`prismbatch.study`: Table I and Fig. 7), the work-precision study
-(:mod:`prismbatch.workprec`) and the paper's manipulation experiment
-(:mod:`prismbatch.experiment`), and writes into one folder:
+(:mod:`prismbatch.lab.study`: Table I and Fig. 7), the work-precision study
+(:mod:`prismbatch.lab.workprec`) and the paper's manipulation experiment
+(:mod:`prismbatch.lab.experiment`), and writes into one folder:
 
 - each part's own files (CSV tables, JSON metadata, Markdown, figures as PNG
   and SVG), prefixed ``validation_``, ``stiff_``, ``study_``, ``workprec_``
@@ -23,7 +23,7 @@ import re
 import time
 from pathlib import Path
 
-from ._report import progress, run_metadata, write_json
+from .report import progress, run_metadata, write_json
 
 __all__ = ["PARTS", "run_reproduce"]
 

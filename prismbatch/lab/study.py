@@ -3,7 +3,7 @@
 Scene (the paper's Fig. 6 sizes): a is a regular n-gon of circumradius 2, b a
 regular n-gon of circumradius 2.5, both with the same n. For every vertex count
 n and every case (1-9 as in the paper, 10-11 added) the poses come from
-:func:`prismbatch.casegen.case_poses` (half hits, half mostly near misses;
+:func:`prismbatch.lab.casegen.case_poses` (half hits, half mostly near misses;
 cases 1 and 5 never collide). A case that casegen cannot build for a shape
 (e.g. degenerate cases on very fine polygons, whose neighbouring vertices fall
 inside the tolerance band) is reported as *missing*, with casegen's message.
@@ -17,10 +17,10 @@ Single-query latency (what the paper measured)
     compiled one-pair path); ``prismbatch_batch1`` =
     :meth:`prismbatch.Collider.collide` on a batch of one pair ((1, 3) and
     (1, 3, 3) arrays: the general vectorised path with its argument parsing);
-    ``fcl`` / ``coal`` = :class:`prismbatch.peers.FCLPeer` /
-    :class:`~prismbatch.peers.CoalPeer` (two ``setTransform`` calls, a fresh
+    ``fcl`` / ``coal`` = :class:`prismbatch.lab.peers.FCLPeer` /
+    :class:`~prismbatch.lab.peers.CoalPeer` (two ``setTransform`` calls, a fresh
     request and result, ``collide``) on finite stand-ins of length
-    :func:`prismbatch.peers.fcl_standin_length` (maximised over all poses of
+    :func:`prismbatch.lab.peers.fcl_standin_length` (maximised over all poses of
     that vertex count; the geometry is built once, outside the timing). One
     *repeat* is one loop over all poses of a case; its mean per-query time is
     loop time / poses. Methods are interleaved within each repeat (so slow
@@ -56,7 +56,7 @@ poses. Disagreements are counted, never hidden: in the cases built with an
 exact zero (2, 3, 4, 7, 8) every hit is an exact touching contact (depth 0), which
 a peer may legitimately call a miss ("touching within tol"); other
 disagreements are adjudicated (up to ``lp_checks`` per cell) with the exact
-LP margin of :func:`prismbatch.exact.margin_lp` when scipy is installed.
+LP margin of :func:`prismbatch.lab.exact.margin_lp` when scipy is installed.
 
 :func:`run_study` returns a :class:`StudyResult`; :func:`format_study` gives
 the text summary; :func:`write_study` writes CSV, JSON, Markdown and figures.
@@ -73,10 +73,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ._report import new_figure, package_versions, progress as _progress_bar, run_metadata, save_figure, write_csv, write_json
+from .report import new_figure, package_versions, progress as _progress_bar, run_metadata, save_figure, write_csv, write_json
 from .casegen import CASE_NUMBERS, EXACT_CASES, case_poses
-from .collide import CASES, Collider, pair_scale_tolerance
-from .shapes import Prism
+from ..collide import CASES, Collider, pair_scale_tolerance
+from ..shapes import Prism
 
 __all__ = ["run_study", "format_study", "write_study", "plot_study", "fit_growth", "StudyResult",
            "PAPER_TABLE1_MS", "PAPER_GROWTH_MS_PER_1000", "PAPER_VERTICES", "PAPER_SOURCE",
@@ -292,7 +292,7 @@ def _method_labels(versions):
 
 def _compile_times():
     """First call of each prismbatch path on a tiny scene (compile or cache load)."""
-    from . import _batch
+    from .._kernels import batch as _batch
 
     a, b = Prism.regular(5, RADIUS_A), Prism.regular(6, RADIUS_B)
     col = Collider(a, b)
@@ -1120,7 +1120,7 @@ def plot_study(res, out_dir):
     style = {"prismbatch_1t": ("C0", "o", "prismbatch {v} collide, 1 thread"),
              "prismbatch_allt": ("C1", "D", "prismbatch {v} collide, {k} threads"),
              "fcl_loop": ("C3", "s", "{fcl}, Python loop"), "coal_loop": ("C2", "^", "{coal}, Python loop")}
-    from . import __version__
+    from .. import __version__
 
     for mode, (col, mk, lab) in style.items():
         rows = sorted((r for r in res.throughput if r["case"] == "all" and r["mode"] == mode),

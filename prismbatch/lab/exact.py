@@ -3,7 +3,7 @@ prisms by linear programming (scipy's HiGHS), plus a point-in-prism residual.
 
 This shares no code with the kernels: it writes both bodies as half-spaces and
 asks an LP solver for the largest common slack. It is slow (milliseconds per
-pair) and is used on subsamples by :func:`prismbatch.validate` and by the test
+pair) and is used on subsamples by :func:`prismbatch.lab.validate` and by the test
 suite as ground truth. Needs scipy (``pip install 'prismbatch[exact]'``).
 
 Geometry: a prism is a convex polygon ``xy`` (n, 2) in its local frame at

@@ -1,0 +1,1 @@
+"""Every compiled (Numba) kernel of prismbatch; private: the engine modules wrap them."""
