@@ -8,8 +8,14 @@ behind a vectorised NumPy API.
 >>> a = pb.Prism.regular(5, 2.0)
 """
 
+from importlib.metadata import PackageNotFoundError, version
+
 from .collide import CASES, Collider, CollisionResult, collide
 from .shapes import Prism, PrismSet
 
 __all__ = ["Prism", "PrismSet", "collide", "Collider", "CollisionResult", "CASES"]
-__version__ = "0.1.0"
+
+try:  # the one place the version lives is pyproject.toml
+    __version__ = version("prismbatch")
+except PackageNotFoundError:  # run from a source tree that was never installed
+    __version__ = "0+unknown"

@@ -6,7 +6,28 @@ import argparse
 import sys
 
 from . import __version__
-from .lab.experiment import PLANTS, PRISMS
+
+
+class _LabChoices:
+    """argparse choices read from a lab module when first needed (help or parsing), not at import.
+
+    The CLI loads a lab module only for the subcommand that uses it.
+    """
+
+    def __init__(self, module, name):
+        self.module, self.name = module, name
+
+    def _values(self):
+        import importlib
+
+        values = getattr(importlib.import_module(self.module, __package__), self.name)
+        return sorted(values) if isinstance(values, dict) else list(values)
+
+    def __iter__(self):
+        return iter(self._values())
+
+    def __contains__(self, x):
+        return x in self._values()
 
 
 def _demo(args):
@@ -183,11 +204,11 @@ def build_parser():
                                    "PD attraction from dC = [2551, -2780, -1970] um to [0, 0, 1000] um past prism a; "
                                    "collisions trigger the detach controller for one step. Prints the case sequence, "
                                    "collisions, contact classes, whether the goal is reached, and the detection cost "
-                                   "against python-fcl on the same trajectory. See prismbatch/experiment.py.")
-    e.add_argument("--prism", choices=sorted(PRISMS), default="square",
+                                   "against python-fcl on the same trajectory. See docs/methods/experiment.md.")
+    e.add_argument("--prism", choices=_LabChoices(".lab.experiment", "PRISMS"), default="square",
                    help="object a: square prism, side 3 mm, or triangular prism, side 2.8 mm (default: square)")
     e.add_argument("--vertices", type=int, default=3600, help="vertices of b's end face (default: 3600)")
-    e.add_argument("--plant", choices=list(PLANTS), default="velocity",
+    e.add_argument("--plant", choices=_LabChoices(".lab.experiment", "PLANTS"), default="velocity",
                    help="velocity: the stage follows the commanded velocity; force: m dv/dt = u - c v "
                         "(default: velocity)")
     e.add_argument("--duration", type=float, default=20.0, help="simulated time in s (default: 20)")

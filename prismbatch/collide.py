@@ -120,6 +120,7 @@ class Collider:
         self.shape_a, self.shape_b = shape_a, shape_b
         self._a = set_a.kernel_arrays(dt)
         self._b = set_b.kernel_arrays(dt)
+        self._shape_args = (*_batch.all_fields(self._a), *_batch.all_fields(self._b))  # one-pair calls
         self._eps = float(np.finfo(dt).eps)
         # Orthonormality tolerance by the input's dtype (the one rule of as_pose).
         self._ortho_tols = {t: ortho_tolerance(t, dt) for t in (np.dtype(np.float64), np.dtype(np.float32))}
@@ -179,7 +180,7 @@ class Collider:
         Pa, Ra, Pb, Rb = f(pos_a, (3,), "pos_a"), f(rot_a, (3, 3), "rot_a"), f(pos_b, (3,), "pos_b"), f(rot_b, (3, 3), "rot_b")
         ta, tb = self._ortho_tol(rot_a), self._ortho_tol(rot_b)
         problem, val, hit, case, cx, cy, cz = _batch.collide_pair(
-            *self._a, *self._b, Pa, Ra, Pb, Rb, self.rtol, self.atol, self._eps, ta, tb, self._max_magnitude)
+            *self._shape_args, Pa, Ra, Pb, Rb, self.rtol, self.atol, self._eps, ta, tb, self._max_magnitude)
         if problem:
             raise ValueError(_pair_problem(problem, val, ta if problem <= 4 else tb, self._max_magnitude))
         return PairResult(bool(hit), int(case), np.array([cx, cy, cz]))
@@ -207,7 +208,7 @@ class Collider:
         Pa, Ra, Pb, Rb = f(pos_a, (3,), "pos_a"), f(rot_a, (3, 3), "rot_a"), f(pos_b, (3,), "pos_b"), f(rot_b, (3, 3), "rot_b")
         trace = np.full(TRACE_SIZE, np.nan)
         a, b = self._a, self._b
-        hit, case, cx, cy, cz = _batch.pair_world(*a, 0, *b[:4], *b[6:], 0, Pa, Ra, Pb, Rb,
+        hit, case, cx, cy, cz = _batch.pair_world(*_batch.all_fields(a), 0, *_batch.pair_fields(b), 0, Pa, Ra, Pb, Rb,
                                                   self.rtol, self.atol, self._eps, trace)
         out = {name: float(v) for name, v in zip(TRACE_FIELDS, trace)}
         out["exit"] = int(trace[TRACE_FIELDS.index("exit")])

@@ -16,9 +16,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
-from ._kernels.planar import edge_search_tables, gjk, point_polygon_distance
+from ._kernels.planar import edge_search_tables, gjk_generators, point_polygon_distance
 from .shapes import Prism, PrismSet
 
 __all__ = ["point_polygon", "segment_polygon", "halfline_polygon", "strip_polygon", "polygon_polygon"]
@@ -35,13 +34,6 @@ def _vec2(x, name):
     if a.shape != (2,) or not np.all(np.isfinite(a)):
         raise ValueError(f"{name} must be a finite 2-vector, got {x!r}")
     return a
-
-
-@njit(cache=True)
-def _gjk_generators(avx, avy, aeang, aetab, an, gx, gy, geang, getab, gn, wx, wy, T, tol):
-    """GJK of polygon A (centred) vs conv(generators) + [0, T] w."""
-    sp = (0.0, 0.0, 1.0, 0.0, 0.0, 1.0, wx, wy, 0.0, 0.0, 1.0, 0.0, T, 0.0, 0.0, 0.0)
-    return gjk(avx, avy, aeang, aetab, 0, an, gx, gy, geang, getab, 0, gn, sp, tol)
 
 
 def _run(prism, pset, pts, w, tol, poly_b=None):
@@ -70,7 +62,7 @@ def _run(prism, pset, pts, w, tol, poly_b=None):
         wx, wy = w[0] / wn, w[1] / wn
         # Beyond this length the shape is farther than the polygon's reach.
         T = float(np.max(np.hypot(reach_pts[:, 0], reach_pts[:, 1]))) + pset.radius[0] + 2 * tol + 1.0
-    hit, _, ax, ay, u, v, t = _gjk_generators(pset.vx, pset.vy, pset.edge_angle, pset.edge_table, len(pset.vx),
+    hit, _, ax, ay, u, v, t = gjk_generators(pset.vx, pset.vy, pset.edge_angle, pset.edge_table, len(pset.vx),
                                               gx, gy, geang, getab, len(gx), wx, wy, T, float(tol))
     if not hit:
         return False, np.full(2, np.nan)

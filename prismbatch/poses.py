@@ -19,8 +19,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
+from ._kernels.checks import first_bad_rotation
 from .config import SUPPORTED_RANGE
 
 __all__ = [
@@ -182,37 +182,6 @@ def _check_positions(p64: np.ndarray, name: str, batched: bool, what: str = "", 
         raise ValueError(f"{where} contains non-finite values (NaN or inf)")
     raise ValueError(f"{where} has a coordinate {v:g} outside the supported range |x| <= {limit:g}"
                      f"{' for float32' if limit != SUPPORTED_RANGE['float64'][1] else ''}; rescale the units")
-
-
-@njit(cache=True)
-def first_bad_rotation(Rb, tol):
-    """One pass over (N, 3, 3): (index, kind, value) of the first bad matrix.
-
-    kind 0: all good; 1: non-finite; 2: not orthonormal (value = max error);
-    3: reflection (value = det). A compiled loop: the NumPy version
-    (matmul + det over the batch) cost more than the collision kernel.
-    """
-    for i in range(Rb.shape[0]):
-        R = Rb[i]
-        for j in range(3):
-            for k in range(3):
-                if not math.isfinite(R[j, k]):
-                    return i, 1, 0.0
-        err = 0.0
-        for j in range(3):
-            for k in range(3):
-                g = R[0, j] * R[0, k] + R[1, j] * R[1, k] + R[2, j] * R[2, k]
-                if j == k:
-                    g -= 1.0
-                err = max(err, abs(g))
-        if err > tol:
-            return i, 2, err
-        det = (R[0, 0] * (R[1, 1] * R[2, 2] - R[1, 2] * R[2, 1])
-               - R[0, 1] * (R[1, 0] * R[2, 2] - R[1, 2] * R[2, 0])
-               + R[0, 2] * (R[1, 0] * R[2, 1] - R[1, 1] * R[2, 0]))
-        if det <= 0.0:
-            return i, 3, det
-    return -1, 0, 0.0
 
 
 def _check_rotation_matrices(

@@ -12,6 +12,8 @@ binary searches, inverse edge lengths, bounding radii).
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from ._kernels.planar import edge_search_tables
@@ -319,10 +321,28 @@ class PrismSet:
         return f"PrismSet({len(self)} prisms, {int(n.min())}..{int(n.max())} vertices)"
 
     def kernel_arrays(self, dtype=np.float64):
-        """Tuple of arrays passed to the kernels, cast once to ``dtype``."""
+        """The arrays the kernels read, cast once to ``dtype``, as a :class:`PrismArrays`."""
         f = lambda a: np.ascontiguousarray(a, dtype=dtype)  # noqa: E731
-        return (f(self.vx), f(self.vy), f(self.edge_angle), self.edge_table, f(self.vertex_angle),
-                f(self.inv_edge_len), self.offsets, f(self.radius), f(self.centre))
+        return PrismArrays(f(self.vx), f(self.vy), f(self.edge_angle), self.edge_table, f(self.vertex_angle),
+                           f(self.inv_edge_len), self.offsets, f(self.radius), f(self.centre))
+
+
+class PrismArrays(NamedTuple):
+    """A :class:`PrismSet`'s arrays as the kernels take them (one dtype, C-contiguous).
+
+    Vertices of prism k are rows ``offsets[k]:offsets[k + 1]`` of the
+    per-vertex arrays, relative to the polygon's centre.
+    """
+
+    vx: np.ndarray
+    vy: np.ndarray
+    edge_angle: np.ndarray
+    edge_table: np.ndarray
+    vertex_angle: np.ndarray
+    inv_edge_len: np.ndarray
+    offsets: np.ndarray
+    radius: np.ndarray
+    centre: np.ndarray
 
 
 def as_prism_set(shape, name, dtype=np.float64):

@@ -10,7 +10,7 @@ import pytest
 pytest.importorskip("scipy")
 pytest.importorskip("fcl")
 
-from prismbatch import validate as V  # noqa: E402
+from prismbatch.lab import validate as V  # noqa: E402
 
 KW = dict(vertices=(5, 12), shapes=("regular", "random"), seed=21, lp_samples=20, progress=False)
 N = 4200  # per distribution: two blocks each (4096 + 104), 16,800 pairs

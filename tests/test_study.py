@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import prismbatch as pb
-from prismbatch import study
+from prismbatch.lab import study
 from prismbatch.lab.casegen import CASE_NUMBERS, EXACT_CASES, HIT_AND_MISS_CASES, case_poses
 from prismbatch.lab.study import fit_growth, format_study, run_study, write_study
 from reference import margin_lp

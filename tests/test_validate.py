@@ -20,7 +20,7 @@ pytest.importorskip("scipy")
 pytest.importorskip("fcl")
 
 import prismbatch as pb  # noqa: E402
-from prismbatch import validate as V  # noqa: E402
+from prismbatch.lab import validate as V  # noqa: E402
 from prismbatch.lab.exact import margin_lp, point_in_prism_residual  # noqa: E402
 from prismbatch.lab.peers import fcl_standin_length, standin_lengths  # noqa: E402
 
@@ -137,13 +137,13 @@ def test_results_do_not_depend_on_chunk_size():
 
 def test_vectorised_residual_matches_exact():
     rng = np.random.default_rng(3)
-    shape = V._make_shape("random", 17, rng)
+    shape = V.make_shape("random", 17, rng)
     from prismbatch.sampling import random_rotations
 
     m = 200
     pos, rot = rng.normal(size=(m, 3)), random_rotations(m, rng)
     x = rng.normal(size=(m, 3)) * 3
-    got = V._residuals(shape, pos, rot, x)
+    got = V.residuals(shape, pos, rot, x)
     want = [point_in_prism_residual(shape.xy, pos[k], rot[k], x[k]) for k in range(m)]
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)
     assert (got > 0).any() and (got < 0).any()
@@ -194,7 +194,7 @@ def test_standin_rule_bounds_every_common_point():
 
     met = 0
     for k in range(120):
-        A, B = V._make_shape("random", 7, rng), V._make_shape("regular", 5, rng)
+        A, B = V.make_shape("random", 7, rng), V.make_shape("regular", 5, rng)
         if k % 2:
             ra, rb = random_rotations(2, rng)
         else:  # same direction, tilt 1e-3 .. 0.3 rad: the bodies may first meet far out

@@ -9,19 +9,19 @@ index, no copies) and writes only its own output slots.
 import math
 import os
 import sys
-import types
 
 import numba
 import numpy as np
-from numba import njit, prange
+from numba import prange
 
+from .checks import first_bad_rotation
+from .jit import jit, twins
 from .projection import T_P, T_R, T_TOL, pair_test
-from ..poses import first_bad_rotation
 
 
 # error_model="numpy": with Python's ZeroDivisionError check on 1 / det the
 # facing-pose benchmark measured ~20% slower per pair; det ~ 1 here.
-@njit(cache=True, error_model="numpy")
+@jit(error_model="numpy")
 def pair_world(avx, avy, aeang, aetab, avang, ainv, aoff, arad, acen, ka,
                bvx, bvy, beang, betab, boff, brad, bcen, kb,
                Pa, Ra, Pb, Rb, rtol, atol, eps, trace):
@@ -144,26 +144,7 @@ def _collide_loop(avx, avy, aeang, aetab, avang, ainv, aoff, arad, acen,
             contact_out[i, 2] = cz
 
 
-def _variant(func, name):
-    """A copy of ``func`` under another name.
-
-    Numba's on-disk cache is keyed by the function's name and source line,
-    not by the ``parallel`` flag: compiled twice under one name, the serial
-    and parallel kernels would overwrite each other's cache entry and one
-    would silently run as the other.
-    """
-    renames = {"co_name": name}
-    if sys.version_info >= (3, 11):  # co_qualname is new in 3.11
-        renames["co_qualname"] = name
-    code = func.__code__.replace(**renames)
-    g = types.FunctionType(code, func.__globals__, name, func.__defaults__, func.__closure__)
-    g.__qualname__ = name
-    g.__doc__ = func.__doc__
-    return g
-
-
-collide_serial = njit(cache=True, parallel=False)(_variant(_collide_loop, "collide_serial"))
-collide_parallel = njit(cache=True, parallel=True)(_variant(_collide_loop, "collide_parallel"))
+collide_serial, collide_parallel = twins(_collide_loop, "collide")
 
 
 #: Batches smaller than this run on the serial kernel when ``parallel`` is
@@ -208,6 +189,16 @@ def use_parallel(parallel, n):
     return bool(parallel)
 
 
+def all_fields(s):
+    """Every array of a PrismArrays ``s``, in the order the batch kernels take them."""
+    return (s.vx, s.vy, s.edge_angle, s.edge_table, s.vertex_angle, s.inv_edge_len, s.offsets, s.radius, s.centre)
+
+
+def pair_fields(s):
+    """The arrays of a PrismArrays that :func:`pair_world` takes for prism b."""
+    return s.vx, s.vy, s.edge_angle, s.edge_table, s.offsets, s.radius, s.centre
+
+
 def run(a_arrays, b_arrays, pos_a, rot_a, pos_b, rot_b, n, rtol, atol,
         want_contact, parallel):
     """Allocate outputs and call the serial or parallel kernel (None: by batch size)."""
@@ -217,12 +208,12 @@ def run(a_arrays, b_arrays, pos_a, rot_a, pos_b, rot_b, n, rtol, atol,
     # A status-only call gets a (0, 3) placeholder: no memory, no writes.
     contact = np.empty((n if want_contact else 0, 3), dtype=pos_a.dtype)
     kern = collide_parallel if parallel else collide_serial
-    kern(*a_arrays, *b_arrays, pos_a, rot_a, pos_b, rot_b,
+    kern(*all_fields(a_arrays), *all_fields(b_arrays), pos_a, rot_a, pos_b, rot_b,
          rtol, atol, float(np.finfo(pos_a.dtype).eps), want_contact, hit, case, contact)
     return hit, case, contact
 
 
-@njit(cache=True)
+@jit
 def collide_pair(avx, avy, aeang, aetab, avang, ainv, aoff, arad, acen,
                  bvx, bvy, beang, betab, bvang, binv, boff, brad, bcen,
                  Pa, Ra, Pb, Rb, rtol, atol, eps, ortho_tol_a, ortho_tol_b, max_magnitude):

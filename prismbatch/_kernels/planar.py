@@ -17,7 +17,7 @@ projection of prism b onto prism a's end plane (section IV of the paper).
 
 import math
 
-from numba import njit
+from .jit import jit
 
 TWO_PI = 2.0 * math.pi
 
@@ -32,7 +32,7 @@ SP_IMIN, SP_IMAX = 14, 15
 GJK_MAX_ITER = 160
 
 
-@njit(cache=True, inline="always")
+@jit(inline="always")
 def pseudo_angle(x, y):
     """A strictly increasing stand-in for atan2(y, x), in [0, 4): cheaper than atan2.
 
@@ -48,7 +48,7 @@ def pseudo_angle(x, y):
     return 3.0 + x / (x - y)
 
 
-@njit(cache=True)
+@jit
 def edge_search_tables(ex, ey, out_ang, out_tab):
     """Unwrapped edge pseudo-angles and bucket table of one CCW polygon.
 
@@ -92,7 +92,7 @@ def edge_search_tables(ex, ey, out_ang, out_tab):
         out_tab[b] = j
 
 
-@njit(cache=True, inline="always")
+@jit(inline="always")
 def extreme_vertex(vx, vy, eang, etab, s, n, dx, dy):
     """Local index of a vertex maximising ``(dx, dy) . v``.
 
@@ -121,7 +121,7 @@ def extreme_vertex(vx, vy, eang, etab, s, n, dx, dy):
     return lo % n
 
 
-@njit(cache=True, inline="always")
+@jit(inline="always")
 def wedge_edge(vang, s, n, px, py):
     """Edge k whose wedge (polar angles about the centre) holds point p (eq. 1)."""
     th0 = vang[s]
@@ -137,7 +137,7 @@ def wedge_edge(vang, s, n, px, py):
     return lo - 1 if lo > 0 else 0
 
 
-@njit(cache=True)
+@jit
 def point_polygon_distance(vx, vy, vang, inv_len, s, n, px, py):
     """Signed distance from p to the edge line of its wedge (paper eq. 1).
 
@@ -154,7 +154,7 @@ def point_polygon_distance(vx, vy, vang, inv_len, s, n, px, py):
     return (ex * (py - y0) - ey * (px - x0)) * inv_len[s + k]
 
 
-@njit(cache=True, inline="always")
+@jit(inline="always")
 def _chain_cross(vx, vy, s, n, hx, hy, start, m, level, rising):
     """Point where h.v crosses `level` on the monotone chain start..start+m."""
     lo = 0
@@ -180,7 +180,7 @@ def _chain_cross(vx, vy, s, n, hx, hy, start, m, level, rising):
     return (vx[s + i0] + f * (vx[s + i1] - vx[s + i0]), vy[s + i0] + f * (vy[s + i1] - vy[s + i0]))
 
 
-@njit(cache=True)
+@jit
 def chord(vx, vy, s, n, hx, hy, imin, imax, level):
     """End points of the chord {q in polygon : h.q = level} in O(log n).
 
@@ -203,7 +203,7 @@ def chord(vx, vy, s, n, hx, hy, imin, imax, level):
 SLAB_INSIDE, SLAB_LO, SLAB_HI = 0, 1, 2
 
 
-@njit(cache=True)
+@jit
 def slab_support(vx, vy, eang, etab, s, n, dx, dy, hx, hy, imin, imax, lo, hi, ex, ey):
     """Maximise d.q over {q in polygon : lo <= h.q <= hi} (assumed non-empty).
 
@@ -232,7 +232,7 @@ def slab_support(vx, vy, eang, etab, s, n, dx, dy, hx, hy, imin, imax, lo, hi, e
     return u2, v2, flag
 
 
-@njit(cache=True)
+@jit
 def support_spec(vx, vy, eang, etab, s, n, sp, dx, dy):
     """Support point of the spec shape B in direction d.
 
@@ -292,7 +292,7 @@ def support_spec(vx, vy, eang, etab, s, n, sp, dx, dy):
     return x, y, u, v, t
 
 
-@njit(cache=True, inline="always")
+@jit(inline="always")
 def _seg_closest(p, q):
     """Closest point to the origin on segment [p, q] of simplex entries.
 
@@ -319,7 +319,7 @@ def _seg_closest(p, q):
     return d * nx, d * ny, lam
 
 
-@njit(cache=True, inline="always")
+@jit(inline="always")
 def _mix(p, q, lam):
     """(1 - lam) p + lam q, entry-wise."""
     m = 1.0 - lam
@@ -327,7 +327,7 @@ def _mix(p, q, lam):
             m * p[4] + lam * q[4], m * p[5] + lam * q[5], m * p[6] + lam * q[6])
 
 
-@njit(cache=True)
+@jit
 def gjk(avx, avy, aeang, aetab, sa, na, bvx, bvy, beang, betab, sb, nb, sp, tol):
     """Is dist(polygon A, spec shape B) <= tol?  2-D GJK on O(log n) supports.
 
@@ -420,3 +420,10 @@ def gjk(avx, avy, aeang, aetab, sa, na, bvx, bvy, beang, betab, sb, nb, sp, tol)
     if lower <= tol:
         return True, GJK_MAX_ITER, wit[2], wit[3], wit[4], wit[5], wit[6]
     return False, GJK_MAX_ITER, 0.0, 0.0, 0.0, 0.0, 0.0
+
+
+@jit
+def gjk_generators(avx, avy, aeang, aetab, an, gx, gy, geang, getab, gn, wx, wy, T, tol):
+    """GJK of polygon A (centred) vs conv(generators) + [0, T] w."""
+    sp = (0.0, 0.0, 1.0, 0.0, 0.0, 1.0, wx, wy, 0.0, 0.0, 1.0, 0.0, T, 0.0, 0.0, 0.0)
+    return gjk(avx, avy, aeang, aetab, 0, an, gx, gy, geang, getab, 0, gn, sp, tol)

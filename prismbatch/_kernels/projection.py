@@ -24,8 +24,7 @@ hits, and a hit is within sqrt(1 + 1.5^2) tol < 2 tol (cases 7-9).
 
 import math
 
-from numba import njit
-
+from .jit import jit
 from .planar import extreme_vertex, gjk, point_polygon_distance
 
 # Case numbers. 1-9 are the paper's; 10 and 11 extend it to d_a.d_b > 0.
@@ -92,7 +91,7 @@ EXITS = {
 }
 
 
-@njit(cache=True)
+@jit
 def _done(trace, exit_code, case, hit):
     if trace is not None:
         trace[T_EXIT] = exit_code
@@ -100,7 +99,7 @@ def _done(trace, exit_code, case, hit):
         trace[T_HIT] = 1.0 if hit else 0.0
 
 
-@njit(cache=True, inline="always")
+@jit(inline="always")
 def _near_top_count(bvx, bvy, sb, nb, hx, hy, imax, zmax_h, tol):
     """Number of b's vertices within tol of the top height (capped at 3)."""
     cnt = 1
@@ -114,7 +113,7 @@ def _near_top_count(bvx, bvy, sb, nb, hx, hy, imax, zmax_h, tol):
     return min(cnt, 3)
 
 
-@njit(cache=True)
+@jit
 def pair_test(avx, avy, aeang, aetab, avang, ainv, sa, na, ra,
               bvx, bvy, beang, betab, sb, nb, rb,
               px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22, tol, trace):

@@ -1,0 +1,71 @@
+"""How prismbatch compiles: one place fixes the Numba options.
+
+Every kernel is ``@jit(...)``: ``njit`` with an on-disk cache, falling back
+to no cache (one line on stderr) where the cache folder is not writable
+(shared installs, containers, a read-only ``NUMBA_CACHE_DIR``). A loop over
+pairs is written once and compiled as serial and parallel twins
+(:func:`twins`), as umap does. Nothing here changes Numba's global config.
+"""
+
+import sys
+import types
+
+from numba import njit
+
+__all__ = ["jit", "twins", "cache_enabled"]
+
+_cache = {"ok": None}  # None: not tried yet
+
+
+def cache_enabled():
+    """True once a kernel was compiled with the on-disk cache, False after the fallback, None before."""
+    return _cache["ok"]
+
+
+def jit(func=None, **options):
+    """``numba.njit(cache=True, **options)``, without the cache where it cannot be written.
+
+    Usable as ``@jit`` or ``@jit(inline="always")``. No ``fastmath``: the
+    kernels rely on NaN and inf behaving as IEEE says.
+    """
+    def compile_(f):
+        if _cache["ok"] is not False:
+            try:
+                out = njit(cache=True, **options)(f)
+            except RuntimeError as exc:  # "cannot cache function ...: no locator available for file ..."
+                if "locator" not in str(exc):
+                    raise
+                _cache["ok"] = False
+                print(f"prismbatch: Numba cannot write its cache ({exc}); compiling without it "
+                      f"(set NUMBA_CACHE_DIR to a writable folder to keep compiled kernels)", file=sys.stderr)
+            else:
+                _cache["ok"] = True
+                return out
+        return njit(cache=False, **options)(f)
+
+    return compile_ if func is None else compile_(func)
+
+
+def twins(loop, name, **options):
+    """``(serial, parallel)``: ``loop`` compiled with ``parallel=False`` and ``True``.
+
+    Each twin is compiled from a copy of ``loop`` under its own name
+    (``name + "_serial"`` / ``"_parallel"``): Numba's on-disk cache is keyed
+    by the function's name and source line, not by the ``parallel`` flag, so
+    under one name the twins would overwrite each other's cache entry and
+    one would silently run as the other.
+    """
+    return (jit(parallel=False, **options)(_renamed(loop, name + "_serial")),
+            jit(parallel=True, **options)(_renamed(loop, name + "_parallel")))
+
+
+def _renamed(func, name):
+    """A copy of ``func`` under another name."""
+    renames = {"co_name": name}
+    if sys.version_info >= (3, 11):  # co_qualname is new in 3.11
+        renames["co_qualname"] = name
+    code = func.__code__.replace(**renames)
+    g = types.FunctionType(code, func.__globals__, name, func.__defaults__, func.__closure__)
+    g.__qualname__ = name
+    g.__doc__ = func.__doc__
+    return g
