@@ -35,7 +35,7 @@ def _kernel_cache_dir():
     """
     src = Path(__file__).resolve().parent.parent / "prismbatch"
     h = hashlib.sha256()
-    for f in sorted(src.glob("*.py")):
+    for f in sorted(src.rglob("*.py")):  # the engine, its kernels and the lab
         h.update(f.read_bytes())
     return os.path.join(tempfile.gettempdir(), f"prismbatch-numba-{h.hexdigest()[:16]}")
 

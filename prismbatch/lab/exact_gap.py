@@ -6,7 +6,7 @@ inputs taken as exact rationals. A float QP (HiGHS) suggests the closest
 points; the features they lie on (end face, side face, end edge, lateral edge,
 vertex) are then solved exactly, and the pair of points is accepted only when
 verified exactly: both points inside their bodies, and n = x_b - x_a supporting
-both (max of n.x over a at x_a, min over b at x_b). Then gap² = |n|² exactly.
+both (max of n.x over a at x_a, min over b at x_b). Then ``gap² = |n|²`` exactly.
 When no feature pair verifies, exact bounds from rational separating planes
 and rational points inside the bodies decide the verdict where they can.
 
