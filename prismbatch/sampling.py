@@ -8,10 +8,11 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["random_rotations", "spins_about_z", "rotation_with_axis", "tilted_up", "facing_poses", "free_poses", "DISTRIBUTIONS"]
+from .geometry import AXIS_DOWN, rotation_with_axis
 
-#: a's orientation in the paper's scene: axis d_a = [0, 0, -1] (body below).
-AXIS_DOWN = np.diag([1.0, -1.0, -1.0])
+__all__ = ["random_rotations", "spins_about_z", "rotation_with_axis", "tilted_up", "facing_poses", "free_poses",
+           "DISTRIBUTIONS", "AXIS_DOWN"]
+
 
 
 def random_rotations(n, rng):
@@ -42,16 +43,6 @@ def spins_about_z(phi):
     Z[:, 1, 1] = c
     Z[:, 2, 2] = 1.0
     return Z
-
-
-def rotation_with_axis(d):
-    """A rotation whose third column is the unit vector along ``d`` (first column: x̂ made orthogonal to d)."""
-    d = np.asarray(d, dtype=float)
-    d = d / np.linalg.norm(d)
-    ref = np.array([1.0, 0.0, 0.0]) if abs(d[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    x = ref - (ref @ d) * d
-    x /= np.linalg.norm(x)
-    return np.column_stack([x, np.cross(d, x), d])
 
 
 def tilted_up(n, max_tilt, rng):
