@@ -13,8 +13,18 @@ prismbatch, LP adjudication), ``analysis`` (:func:`fit_growth`, Table I),
 
 from .agreement import adjudicate
 from .analysis import fit_growth
-from .constants import (DEFAULTS, METHODS, PAPER_GROWTH_MS_PER_1000, PAPER_SOURCE, PAPER_TABLE1_MS, PAPER_VERTICES,
-                        PEERS, QUICK, RADIUS_A, RADIUS_B)
+from .constants import (
+                        DEFAULTS,
+                        METHODS,
+                        PAPER_GROWTH_MS_PER_1000,
+                        PAPER_SOURCE,
+                        PAPER_TABLE1_MS,
+                        PAPER_VERTICES,
+                        PEERS,
+                        QUICK,
+                        RADIUS_A,
+                        RADIUS_B,
+)
 from .files import write_study
 from .plots import plot_study
 from .report import format_study

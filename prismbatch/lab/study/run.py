@@ -14,64 +14,33 @@ import numpy as np
 from ...collide import Collider
 from ...shapes import Prism
 from ..casegen import CASE_NUMBERS, case_poses
-from ..report import package_versions, progress as progress_bar
+from ..checks import check_int, check_int_tuple, is_int
+from ..report import package_versions
+from ..report import progress as progress_bar
 from .agreement import agreement_rows
 from .analysis import growth_rows, table1_rows
 from .constants import DEFAULTS, METHODS, PEERS, QUICK, RADIUS_A, RADIUS_B
 from .result import StudyResult
 from .timing import compile_times, cpu_snapshot, other_load, stats, timed_loops
 
-
 # ---------------------------------------------------------------------------
 # argument checks
 # ---------------------------------------------------------------------------
-
-
-def _is_int(v):
-    """A Python or NumPy integer, not a bool."""
-    return not isinstance(v, (bool, np.bool_)) and isinstance(v, (int, np.integer))
-
-
-def _int_tuple(x, name, minimum):
-    try:
-        vals = tuple(x)
-    except TypeError:
-        raise TypeError(f"{name} must be a sequence of integers, got {type(x).__name__}") from None
-    if not vals:
-        raise ValueError(f"{name} must not be empty")
-    out = []
-    for v in vals:
-        if not _is_int(v):
-            raise TypeError(f"{name} must hold integers, got {v!r}")
-        if v < minimum:
-            raise ValueError(f"{name} values must be >= {minimum}, got {v}")
-        out.append(int(v))
-    if len(set(out)) != len(out):
-        raise ValueError(f"{name} has repeated values: {out}")
-    return tuple(out)
-
-
-def _positive_int(v, name):
-    if not _is_int(v):
-        raise TypeError(f"{name} must be an integer, got {v!r}")
-    if v < 1:
-        raise ValueError(f"{name} must be >= 1, got {v}")
-    return int(v)
 
 
 def _check_arguments(vertices, cases, poses_per_case, repeats, batch_pairs, peers, seed, quick, lp_checks,
                      table_vertices):
     """The arguments of :func:`run_study` checked, with the ``quick`` or full defaults filled in."""
     base = QUICK if quick else DEFAULTS
-    vertices = _int_tuple(base["vertices"] if vertices is None else vertices, "vertices", 3)
-    cases = _int_tuple(cases, "cases", 1)
+    vertices = check_int_tuple(base["vertices"] if vertices is None else vertices, "vertices", 3)
+    cases = check_int_tuple(cases, "cases", 1)
     bad = [c for c in cases if c not in CASE_NUMBERS]
     if bad:
         raise ValueError(f"cases must be among {CASE_NUMBERS}, got {bad}")
-    poses_per_case = _positive_int(base["poses_per_case"] if poses_per_case is None else poses_per_case,
+    poses_per_case = check_int(base["poses_per_case"] if poses_per_case is None else poses_per_case,
                                    "poses_per_case")
-    repeats = _positive_int(base["repeats"] if repeats is None else repeats, "repeats")
-    batch_pairs = _positive_int(base["batch_pairs"] if batch_pairs is None else batch_pairs, "batch_pairs")
+    repeats = check_int(base["repeats"] if repeats is None else repeats, "repeats")
+    batch_pairs = check_int(base["batch_pairs"] if batch_pairs is None else batch_pairs, "batch_pairs")
     if isinstance(peers, str):
         raise TypeError(f"peers must be a sequence of names, e.g. ('fcl', 'coal'), got the string {peers!r}")
     peers = tuple(peers)
@@ -80,9 +49,9 @@ def _check_arguments(vertices, cases, poses_per_case, repeats, batch_pairs, peer
         raise ValueError(f"peers must be among {PEERS}, got {unknown}")
     if len(set(peers)) != len(peers):
         raise ValueError(f"peers has repeated names: {peers}")
-    if not _is_int(seed) or seed < 0:
+    if not is_int(seed) or seed < 0:
         raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
-    if not _is_int(lp_checks) or lp_checks < 0:
+    if not is_int(lp_checks) or lp_checks < 0:
         raise ValueError(f"lp_checks must be a non-negative integer, got {lp_checks!r}")
     if table_vertices not in vertices:
         raise ValueError(f"table_vertices ({table_vertices}) must be one of vertices {vertices}")

@@ -16,6 +16,7 @@ import numpy as np
 
 from ...collide import DEFAULT_RTOL, Collider, pair_scale_tolerance
 from ...shapes import Prism
+from ..checks import check_int, check_positive
 from ..report import package_versions
 from ..report import progress as make_progress_bar
 from .result import METHODS, WorkPrecisionResult, method_labels
@@ -26,8 +27,6 @@ from .scene import (
     GAP_RANGE,
     TILT_RANGE_DEG,
     NearContactPoses,
-    check_int,
-    check_positive,
     geometric_error,
     near_contact_poses,
 )

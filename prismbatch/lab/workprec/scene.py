@@ -12,6 +12,7 @@ import numpy as np
 
 from ...sampling import AXIS_DOWN
 from ...shapes import Prism
+from ..checks import check_int, check_positive
 
 #: Near-contact construction: |gap| / r range (log-uniform), angle of u from a's end-face normal and of
 #: b's axis from u (degrees).
@@ -26,31 +27,6 @@ B_VERTICES = 6
 
 # ---------------------------------------------------------------------------
 # argument checks (shared with run.py)
-# ---------------------------------------------------------------------------
-
-
-def check_int(v, name, minimum):
-    """``v`` as an int, or TypeError (not an integer; bools refused) / ValueError (below ``minimum``)."""
-    if isinstance(v, bool) or not isinstance(v, (int, np.integer)):
-        raise TypeError(f"{name} must be an integer, got {type(v).__name__}")
-    if v < minimum:
-        raise ValueError(f"{name} must be >= {minimum}, got {v}")
-    return int(v)
-
-
-def check_positive(v, name):
-    """``v`` as a float, or TypeError (not a real number) / ValueError (not finite and > 0)."""
-    try:
-        f = float(v)
-    except (TypeError, ValueError):
-        raise TypeError(f"{name} must be a real number, got {type(v).__name__}") from None
-    if not (math.isfinite(f) and f > 0):
-        raise ValueError(f"{name} must be finite and > 0, got {v}")
-    return f
-
-
-# ---------------------------------------------------------------------------
-# geometric error of the inscribed n-gon
 # ---------------------------------------------------------------------------
 
 

@@ -1,0 +1,54 @@
+"""Argument checks shared by the lab's applications (one message per kind of mistake)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+__all__ = ["is_int", "check_int", "check_positive", "check_int_tuple"]
+
+
+def is_int(v):
+    """A Python or NumPy integer, not a bool."""
+    return not isinstance(v, (bool, np.bool_)) and isinstance(v, (int, np.integer))
+
+
+def check_int(v, name, minimum=1):
+    """``v`` as an int; TypeError if it is not an integer (bools refused), ValueError below ``minimum``."""
+    if not is_int(v):
+        raise TypeError(f"{name} must be an integer, got {v!r}")
+    if v < minimum:
+        raise ValueError(f"{name} must be >= {minimum}, got {v}")
+    return int(v)
+
+
+def check_int_tuple(x, name, minimum):
+    """A non-empty sequence of distinct integers >= ``minimum``, as a tuple."""
+    try:
+        vals = tuple(x)
+    except TypeError:
+        raise TypeError(f"{name} must be a sequence of integers, got {type(x).__name__}") from None
+    if not vals:
+        raise ValueError(f"{name} must not be empty")
+    out = []
+    for v in vals:
+        if not is_int(v):
+            raise TypeError(f"{name} must hold integers, got {v!r}")
+        if v < minimum:
+            raise ValueError(f"{name} values must be >= {minimum}, got {v}")
+        out.append(int(v))
+    if len(set(out)) != len(out):
+        raise ValueError(f"{name} has repeated values: {out}")
+    return tuple(out)
+
+
+def check_positive(v, name):
+    """``v`` as a float; TypeError if it is not a real number, ValueError unless finite and > 0."""
+    try:
+        f = float(v)
+    except (TypeError, ValueError):
+        raise TypeError(f"{name} must be a real number, got {type(v).__name__}") from None
+    if not (math.isfinite(f) and f > 0):
+        raise ValueError(f"{name} must be finite and > 0, got {v}")
+    return f
