@@ -28,20 +28,6 @@ def _host_cpus():
     return socket.gethostname(), os.cpu_count() or 1
 
 
-def _warm_worker(dtype):
-    """Load (or compile) the kernels in a worker before any chunk runs there."""
-    from .validate import _warm
-
-    return _warm(dtype)
-
-
-def _set_threads(k):
-    import numba
-
-    numba.set_num_threads(max(1, min(int(k), numba.config.NUMBA_NUM_THREADS)))
-    return numba.get_num_threads()
-
-
 def run_chunks(config, specs, done, *, scheduler=None, workers=None):
     """Run validation chunks on a Dask cluster and hand each result to ``done``.
 
@@ -69,18 +55,18 @@ def run_chunks(config, specs, done, *, scheduler=None, workers=None):
     Notes
     -----
     The caller warms the Numba cache in-process first; each worker then loads
-    the kernels (``client.run``) before chunks are submitted. Every worker's
-    Numba thread count is set to ``max(1, cpus of its host // worker threads
-    on that host)``, so workers do not oversubscribe cores; the count is also
-    passed to each chunk task, because ``numba.set_num_threads`` applies to
-    the calling thread only.
+    the kernels (:func:`prismbatch.lab.validate.warm`, with ``client.run``)
+    before chunks are submitted. Every worker's Numba thread count is set to
+    ``max(1, cpus of its host // worker threads on that host)``, so workers
+    do not oversubscribe cores; the count is also passed to each chunk task,
+    because ``numba.set_num_threads`` applies to the calling thread only.
     """
     if scheduler is None and workers is None:
         raise ValueError("run_chunks needs a scheduler address or a number of workers")
     distributed = _import_distributed()
     import logging
 
-    from .validate import run_chunk
+    from .validate import run_chunk, set_numba_threads, warm
 
     cluster = None
     if scheduler is not None:
@@ -99,8 +85,9 @@ def run_chunks(config, specs, done, *, scheduler=None, workers=None):
             busy[host] = busy.get(host, 0) + int(info[addr].get("nthreads", 1))
         per_worker = {addr: max(1, cpus // busy[host]) for addr, (host, cpus) in hosts.items()}
         for addr, k in per_worker.items():
-            client.run(_set_threads, k, workers=[addr])
-        warm = client.run(_warm_worker, config["dtype"])
+            client.run(set_numba_threads, k, workers=[addr])
+        # each worker loads (or compiles) the kernels before any chunk runs there
+        warmup = client.run(warm, config["dtype"])
         threads = min(per_worker.values())
         futures = {}
         for spec in specs:
@@ -112,7 +99,7 @@ def run_chunks(config, specs, done, *, scheduler=None, workers=None):
             done(futures[fut], fut.result())
         return {"scheduler": scheduler if scheduler is not None else "dask LocalCluster",
                 "workers": len(hosts), "numba_threads": threads,
-                "worker_warmup_s": {str(a): float(s) for a, s in warm.items()}}
+                "worker_warmup_s": {str(a): float(s) for a, s in warmup.items()}}
     finally:
         client.close()
         if cluster is not None:

@@ -22,7 +22,8 @@ import numpy as np
 __all__ = ["polygon_ccw", "polygon_halfplanes", "margin_lp", "margin_lp_batch", "point_in_prism_residual"]
 
 
-def _linprog():
+def import_linprog():
+    """scipy's ``linprog``; ImportError naming the ``[exact]`` extra when scipy is missing."""
     try:
         from scipy.optimize import linprog
     except ImportError as exc:
@@ -123,16 +124,16 @@ def margin_lp(xy_a, pos_a, rot_a, xy_b, pos_b, rot_b, *, length_a=None,
               length_b=None) -> float:
     """Exact signed margin between two semi-infinite prisms.
 
-    delta* = max_{x in R^3, delta} delta  subject to every half-space of
-    both bodies holding with slack >= delta, each written with a unit normal:
+    ``delta* = max_{x in R^3, delta} delta`` subject to every half-space of
+    both bodies holding with slack >= delta, each written with a unit normal::
 
         end face   : (x - p) . d      >= delta
         side face i: n_i . (x - p)    <= h_i - delta
 
-    so delta is in length units.  delta* >= 0 iff the closed bodies
-    intersect; if delta* < 0 the Euclidean gap g satisfies g >= 2 |delta*|
+    so delta is in length units.  ``delta* >= 0`` iff the closed bodies
+    intersect; if ``delta* < 0`` the Euclidean gap g satisfies ``g >= 2 |delta*|``
     (the midpoint of a closest pair violates no constraint by more than g/2).
-    For two parallel slabs / half-spaces the bound is tight (g = -2 delta*).
+    For two parallel slabs / half-spaces the bound is tight (``g = -2 delta*``).
 
     ``length_a`` / ``length_b`` (keyword-only, optional) add a far cap
     ``(x - p) . d <= length - delta``, i.e. the margin of FINITE prisms of
@@ -170,7 +171,7 @@ def margin_lp(xy_a, pos_a, rot_a, xy_b, pos_b, rot_b, *, length_a=None,
     # Tight tolerances first; HiGHS occasionally gives up on nearly degenerate
     # poses (status 4), so fall back to its other solvers before failing.
     attempts = (("highs", _HIGHS_OPTIONS), ("highs-ds", _HIGHS_OPTIONS), ("highs-ipm", {}), ("highs-ds", {}))
-    linprog = _linprog()
+    linprog = import_linprog()
     for method, options in attempts:
         res = linprog(c, A_ub=A, b_ub=b, bounds=bounds, method=method, options=options)
         if res.status == 0:

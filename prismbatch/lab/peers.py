@@ -31,7 +31,8 @@ _FCL_MISSING = "python-fcl is not installed: pip install 'prismbatch[fcl]'"
 _COAL_MISSING = "coal is not installed: pip install 'prismbatch[coal]' (or pip install coal)"
 
 
-def _import_fcl():
+def import_fcl():
+    """The ``fcl`` module (python-fcl); ImportError naming the ``[fcl]`` extra when it is missing."""
     try:
         import fcl  # noqa: PLC0415
     except ImportError as exc:  # pragma: no cover - depends on environment
@@ -213,7 +214,7 @@ def fcl_prism(xy, length):
     ``[k, i0, ..., i_{k-1}, k, ...]``; faces are listed CCW seen from
     outside (outward normals).
     """
-    fcl = _import_fcl()
+    fcl = import_fcl()
     verts, faces = _prism_mesh(xy, length)
     flat = []
     for f in faces:
@@ -328,7 +329,7 @@ class _Peer:
 class FCLPeer(_Peer):
     """python-fcl (GJK/MPR on ``fcl.Convex``) on finite stand-ins."""
 
-    _import = staticmethod(_import_fcl)
+    _import = staticmethod(import_fcl)
     _geometry = staticmethod(fcl_prism)
     _transform_name = "Transform"
 
@@ -347,7 +348,7 @@ class FCLCylinderPeer(FCLPeer):
     """
 
     def __init__(self, radius, xy_b, length):
-        fcl = _import_fcl()
+        fcl = import_fcl()
         self._setup(fcl.Cylinder(float(radius), float(length)), fcl_prism(xy_b, float(length)), length)
 
     def prepare(self, pos_a, rot_a, pos_b, rot_b):

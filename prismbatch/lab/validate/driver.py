@@ -1,0 +1,157 @@
+"""The validation run: check the options, cut the blocks into chunks, run them, merge.
+
+Chunks run in-process or on Dask (:mod:`prismbatch.lab.cluster`); either way the merged
+result is the same (``docs/methods/validation.md``).
+"""
+
+from __future__ import annotations
+
+import time
+
+from ..checks import is_int
+from .blocks import run_chunk, warm
+from .config import block_len, make_config, n_blocks
+from .merge import Merger, ValidationResult
+
+
+def _chunk_specs(cfg, chunk_size):
+    per = max(1, int(round(chunk_size / cfg["block_size"])))
+    nb = n_blocks(cfg)
+    return [(d, first, min(per, nb - first)) for d in cfg["distributions"] for first in range(0, nb, per)]
+
+
+def _spec_pairs(cfg, spec):
+    d, first, n = spec
+    return sum(block_len(cfg, b) for b in range(first, first + n))
+
+
+def _check_run_options(chunk_size, stiff, workers, scheduler):
+    if not is_int(chunk_size) or chunk_size < 1:
+        raise ValueError(f"chunk_size must be an integer >= 1, got {chunk_size!r}")
+    if stiff not in (False, True, "quick"):
+        raise ValueError(f"stiff must be True, False or 'quick', got {stiff!r}")
+    if workers is not None and (not is_int(workers) or workers < 1):
+        raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
+    if scheduler is not None and not isinstance(scheduler, str):
+        raise TypeError(f"scheduler must be an address string such as 'tcp://host:8786', got {scheduler!r}")
+
+
+def _require_extras(cfg):
+    """Fail early on missing extras, not after an hour of work."""
+    if cfg["lp_samples"] > 0 or cfg["fcl_fraction"] > 0:  # the LP also arbitrates FCL disagreements
+        from ..exact import import_linprog
+        import_linprog()
+    if cfg["fcl_fraction"] > 0:
+        from ..peers import import_fcl
+        import_fcl()
+
+
+def _run_chunks(cfg, specs, merger, scheduler, workers, progress):
+    """Run every chunk (in-process or on Dask) into ``merger``; returns the execution dict."""
+    from ..report import numba_threads
+    from ..report import progress as _progress
+
+    total = cfg["n_pairs"] * len(cfg["distributions"])
+    with _progress(total, enabled=progress, unit="pair", desc="validate") as bar:
+        if scheduler is None and workers is None:
+            execution = {"scheduler": "in-process", "workers": 1, "numba_threads": numba_threads()}
+            for spec in specs:
+                merger.add(run_chunk(cfg, *spec))
+                bar.update(_spec_pairs(cfg, spec))
+        else:
+            from ..cluster import run_chunks
+
+            def done(spec, chunk):
+                merger.add(chunk)
+                bar.update(_spec_pairs(cfg, spec))
+
+            execution = run_chunks(cfg, specs, done, scheduler=scheduler, workers=workers)
+    return execution
+
+
+def validate(n_pairs=100_000, *, distributions=("facing", "free", "near-contact", "degenerate"),
+             shapes="regular", vertices=(36, 360), seed=0, chunk_size=50_000, dtype="float64", rtol=None,
+             atol=0.0, fcl=True, lp_samples=2000, contact_check=True, max_band_records=1000, stiff=False,
+             scheduler=None, workers=None, progress=True):
+    """Monte Carlo validation of prismbatch against python-fcl and the exact LP.
+
+    Parameters
+    ----------
+    n_pairs : int, optional
+        Pose pairs PER DISTRIBUTION (default 100,000). Processed in chunks
+        of blocks: memory stays bounded for any ``n_pairs``.
+    distributions : sequence of str, optional
+        Any of ``"facing"`` (the paper's scene), ``"free"`` (uniform
+        rotations, centres in a box), ``"near-contact"`` (within 0.1 to 1e4
+        tolerances of touching, both sides) and ``"degenerate"`` (exact cases
+        2, 3, 4, 7, 8 from :func:`prismbatch.lab.casegen.case_poses`).
+    shapes : str or sequence of str, optional
+        ``"regular"``, ``"random"`` (random convex polygons) or
+        ``"cylinder"`` (circles fitted by circumscribed n-gons); a sequence is
+        cycled over the blocks. Each block draws its own two shapes.
+    vertices : int or sequence of int, optional
+        Vertex counts, cycled over the blocks (a: ``vertices[i]``, b:
+        ``vertices[i + 1]``, modulo the length).
+    seed : int, optional
+        The one seed; block ``i`` of distribution ``j`` uses
+        ``SeedSequence(seed, spawn_key=(j, i))``.
+    chunk_size : int, optional
+        Pairs per chunk (rounded to whole blocks of :data:`BLOCK_SIZE`); does
+        not change the results.
+    dtype : {"float64", "float32"}, optional
+        prismbatch's precision (poses are rounded to it for every method).
+    rtol, atol : float, optional
+        prismbatch's tolerances (default rtol per dtype, atol 0).
+    fcl : bool or float, optional
+        python-fcl on every pair (True, 6-50 us per pair), none (False) or
+        on a random fraction in (0, 1] (for runs well above 1e6 pairs).
+    lp_samples : int, optional
+        Pairs per distribution on which the exact LP runs (milliseconds
+        each), spread over the blocks; the LP also runs on every pair where
+        prismbatch and FCL disagree.
+    contact_check : bool, optional
+        Compute contacts and check every hit's contact against both bodies.
+    max_band_records : int, optional
+        "inside band" records kept (the first ones in block order; they are
+        allowed and plentiful near contact). Every other record is kept; all
+        are counted.
+    stiff : bool or "quick", optional
+        Also run ``prismbatch.lab.stiff.run_stiff_suite`` (in-process).
+    scheduler : str, optional
+        Address of an existing Dask scheduler to send chunks to.
+    workers : int, optional
+        Start a local Dask cluster with this many worker processes (when no
+        ``scheduler`` is given). Without either, runs in-process.
+    progress : bool, optional
+        Progress bar over pairs (tqdm, when installed).
+
+    Returns
+    -------
+    ValidationResult
+
+    Raises
+    ------
+    ValueError, TypeError
+        Bad arguments (the message names the argument).
+    ImportError
+        A needed optional dependency is missing (scipy for the LP,
+        python-fcl, dask); the message names the extra to install.
+    """
+    cfg = make_config(n_pairs, distributions=distributions, shapes=shapes, vertices=vertices, seed=seed,
+                      dtype=dtype, rtol=rtol, atol=atol, fcl=fcl, lp_samples=lp_samples,
+                      contact_check=contact_check, max_band_records=max_band_records)
+    _check_run_options(chunk_size, stiff, workers, scheduler)
+    _require_extras(cfg)
+    t_start = time.perf_counter()
+    compile_time = warm(cfg["dtype"])
+    specs = _chunk_specs(cfg, chunk_size)
+    merger = Merger(cfg)
+    execution = _run_chunks(cfg, specs, merger, scheduler, workers, progress)
+    wall = time.perf_counter() - t_start  # the Monte Carlo run; the stiff suite reports its own time
+    rep = None
+    if stiff:
+        from ..stiff import run_stiff_suite
+
+        rep = run_stiff_suite(quick=stiff == "quick", seed=cfg["seed"], progress=progress)
+    return ValidationResult(cfg, merger.counts, merger.times, merger.records, merger.total, compile_time,
+                            wall, execution, rep)
