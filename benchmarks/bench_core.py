@@ -106,8 +106,12 @@ def summarize(walls, cpus, n_pairs):
     us = walls / n_pairs * 1e6
     q1, med, q3 = np.percentile(us, [25, 50, 75])
     return {
-        "median_us": float(med), "min_us": float(us.min()), "max_us": float(us.max()),
-        "q1_us": float(q1), "q3_us": float(q3), "repeats": int(len(us)),
+        "median_us": float(med),
+        "min_us": float(us.min()),
+        "max_us": float(us.max()),
+        "q1_us": float(q1),
+        "q3_us": float(q3),
+        "repeats": int(len(us)),
         "n_pairs": int(n_pairs),
         # process CPU time / wall time: ~1 on one thread, ~k with k busy threads
         "cpu_per_wall": float(np.sum(cpus) / max(np.sum(walls), 1e-12)),
@@ -138,11 +142,13 @@ class threads:
 
     def __enter__(self):
         import numba
+
         self.old = numba.get_num_threads()
         numba.set_num_threads(self.k)
 
     def __exit__(self, *exc):
         import numba
+
         numba.set_num_threads(self.old)
 
 
@@ -223,10 +229,12 @@ def bench_cell(n, pose_name, args, all_threads, ref, log, waiter):
     one = tuple(x[:1] for x in full)
     with threads(1):
         rows["pb_1t_single_pair_call"] = summarize(
-            *time_repeats(pb_call(*one, False, False), max(rep, 200), warmup=5), 1)
+            *time_repeats(pb_call(*one, False, False), max(rep, 200), warmup=5), 1
+        )
         pair = tuple(np.ascontiguousarray(x[0]) for x in full)
         rows["pb_collide_pair_call"] = summarize(
-            *time_repeats(lambda: col.collide_pair(*pair), max(rep, 200), warmup=5), 1)
+            *time_repeats(lambda: col.collide_pair(*pair), max(rep, 200), warmup=5), 1
+        )
     res_par = col.collide(*full, parallel=True)
     mismatch_serial_parallel = int(np.count_nonzero(res_par.hit != res_full.hit))
     mismatch_status_contact = int(np.count_nonzero(res_contact.hit != res_full.hit))
@@ -234,12 +242,13 @@ def bench_cell(n, pose_name, args, all_threads, ref, log, waiter):
     # --- kernel only (private API: no pose validation/conversion); diagnostic ---
     try:
         from prismbatch._kernels import batch as _batch
+
         kp = [np.ascontiguousarray(x, dtype=np.float64) for x in full]
-        for key, k_threads, parallel in (("kernel_1t_status", 1, False),
-                                         ("kernel_all_status", all_threads, True)):
+        for key, k_threads, parallel in (("kernel_1t_status", 1, False), ("kernel_all_status", all_threads, True)):
             with threads(k_threads):
                 fn = lambda parallel=parallel: _batch.run(  # noqa: E731
-                    col._a, col._b, *kp, args.n_pairs, col.rtol, col.atol, False, parallel)
+                    col._a, col._b, *kp, args.n_pairs, col.rtol, col.atol, False, parallel
+                )
                 rows[key] = measure(fn, rep, args.n_pairs)
                 rows[key]["cpu_per_wall"] = thread_use(fn)
     except Exception as exc:  # noqa: BLE001 - private API may change
@@ -255,13 +264,11 @@ def bench_cell(n, pose_name, args, all_threads, ref, log, waiter):
     peer_hits = {}
     fpeer = FCLPeer(a.xy, b.xy, length)
     peer_hits["fcl"] = fpeer.run(items)
-    rows["sub_fcl"] = measure(lambda: fpeer.run(items), args.peer_repeats, M,
-                                warmup=0)
+    rows["sub_fcl"] = measure(lambda: fpeer.run(items), args.peer_repeats, M, warmup=0)
     try:
         cpeer = CoalPeer(a.xy, b.xy, length)
         peer_hits["coal"] = cpeer.run(items)
-        rows["sub_coal"] = measure(lambda: cpeer.run(items), args.peer_repeats, M,
-                                   warmup=0)
+        rows["sub_coal"] = measure(lambda: cpeer.run(items), args.peer_repeats, M, warmup=0)
     except ImportError:
         log("  (coal not installed: skipped)")
 
@@ -270,31 +277,44 @@ def bench_cell(n, pose_name, args, all_threads, ref, log, waiter):
     repro = []
     for name, h in peer_hits.items():
         idx = np.flatnonzero(h != res_sub.hit)
-        agreement[name] = {"disagreements": int(len(idx)), "n": int(M),
-                           "pb_hit_peer_miss": int(np.count_nonzero(res_sub.hit[idx])),
-                           "pb_miss_peer_hit": int(np.count_nonzero(~res_sub.hit[idx]))}
+        agreement[name] = {
+            "disagreements": int(len(idx)),
+            "n": int(M),
+            "pb_hit_peer_miss": int(np.count_nonzero(res_sub.hit[idx])),
+            "pb_miss_peer_hit": int(np.count_nonzero(~res_sub.hit[idx])),
+        }
         for k in idx[: args.max_repro]:
             k = int(k)
             entry = {
-                "n": n, "poses": pose_name, "peer": name, "index": k,
+                "n": n,
+                "poses": pose_name,
+                "peer": name,
+                "index": k,
                 "shape_a": f"Prism.regular({n}, {RADIUS_A})",
                 "shape_b": f"Prism.regular({n}, {RADIUS_B})",
-                "pos_a": sub[0][k].tolist(), "rot_a": sub[1][k].tolist(),
-                "pos_b": sub[2][k].tolist(), "rot_b": sub[3][k].tolist(),
-                "pb_hit": bool(res_sub.hit[k]), "pb_case": int(res_sub.case[k]),
-                "peer_hit": bool(h[k]), "standin_length": length,
+                "pos_a": sub[0][k].tolist(),
+                "rot_a": sub[1][k].tolist(),
+                "pos_b": sub[2][k].tolist(),
+                "rot_b": sub[3][k].tolist(),
+                "pb_hit": bool(res_sub.hit[k]),
+                "pb_case": int(res_sub.case[k]),
+                "peer_hit": bool(h[k]),
+                "standin_length": length,
             }
             if ref is not None:
                 try:
                     entry["lp_margin_semi_infinite"] = ref.margin_lp(
-                        a.xy, sub[0][k], sub[1][k], b.xy, sub[2][k], sub[3][k])
+                        a.xy, sub[0][k], sub[1][k], b.xy, sub[2][k], sub[3][k]
+                    )
                     entry["lp_margin_finite_standins"] = ref.margin_lp(
-                        a.xy, sub[0][k], sub[1][k], b.xy, sub[2][k], sub[3][k],
-                        length_a=length, length_b=length)
+                        a.xy, sub[0][k], sub[1][k], b.xy, sub[2][k], sub[3][k], length_a=length, length_b=length
+                    )
                     lp_hit = entry["lp_margin_semi_infinite"] >= 0.0
-                    entry["verdict"] = ("prismbatch agrees with LP (semi-infinite)"
-                                        if lp_hit == entry["pb_hit"] else
-                                        "prismbatch DISAGREES with LP (semi-infinite)")
+                    entry["verdict"] = (
+                        "prismbatch agrees with LP (semi-infinite)"
+                        if lp_hit == entry["pb_hit"]
+                        else "prismbatch DISAGREES with LP (semi-infinite)"
+                    )
                 except Exception as exc:  # noqa: BLE001
                     entry["lp_error"] = f"{type(exc).__name__}: {exc}"
             repro.append(entry)
@@ -306,7 +326,8 @@ def bench_cell(n, pose_name, args, all_threads, ref, log, waiter):
         agreement[name]["lp_checked"] = len(mine)
         agreement[name]["lp_pb_right"] = sum(e["verdict"].startswith("prismbatch agrees") for e in mine)
     info = {
-        "n": n, "poses": pose_name,
+        "n": n,
+        "poses": pose_name,
         "load_avg_1min_at_start": load_start,
         "other_processes_cpus": other,
         "hit_fraction": float(res_full.hit.mean()),
@@ -344,8 +365,14 @@ print(json.dumps({"import_s": t_import, "first_s": t1, "second_s": t2}))
 
 def _first_call(kind, cache_dir):
     env = dict(os.environ, NUMBA_CACHE_DIR=str(cache_dir))
-    out = subprocess.run([sys.executable, "-c", _FIRST_CALL_CODE, kind], env=env,
-                         capture_output=True, text=True, timeout=900, check=False)
+    out = subprocess.run(
+        [sys.executable, "-c", _FIRST_CALL_CODE, kind],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=900,
+        check=False,
+    )
     if out.returncode != 0:
         raise RuntimeError(f"first-call subprocess ({kind}) failed:\n{out.stderr[-2000:]}")
     r = json.loads(out.stdout.strip().splitlines()[-1])
@@ -361,8 +388,10 @@ def compile_times(log):
             cold = _first_call(kind, d)
             warm = _first_call(kind, d)
         res[kind] = {"cold": cold, "cached": warm}
-        log(f"  {kind}: cold first call {cold['first_minus_second_s']:.2f} s "
-            f"(minus 2nd call), cached {warm['first_minus_second_s']:.3f} s")
+        log(
+            f"  {kind}: cold first call {cold['first_minus_second_s']:.2f} s "
+            f"(minus 2nd call), cached {warm['first_minus_second_s']:.3f} s"
+        )
     return res
 
 
@@ -420,8 +449,10 @@ class IdleWaiter:
             if other is None or other < self.threshold:
                 break
             if self.log and not warned:
-                self.log(f"  waiting for other processes to go idle ({other:.2f} CPUs busy; "
-                         f"{max(self.left, 0):.0f} s of waiting budget left)...")
+                self.log(
+                    f"  waiting for other processes to go idle ({other:.2f} CPUs busy; "
+                    f"{max(self.left, 0):.0f} s of waiting budget left)..."
+                )
                 warned = True
         return time.perf_counter() - t0
 
@@ -452,11 +483,20 @@ def machine_info():
     except OSError:
         pass
     try:
-        commit = subprocess.run(["git", "-C", str(REPO), "rev-parse", "HEAD"], capture_output=True,
-                                text=True, check=False).stdout.strip() or None
-        dirty = bool(subprocess.run(["git", "-C", str(REPO), "status", "--porcelain", "--",
-                                     "prismbatch"], capture_output=True, text=True,
-                                    check=False).stdout.strip())
+        commit = (
+            subprocess.run(
+                ["git", "-C", str(REPO), "rev-parse", "HEAD"], capture_output=True, text=True, check=False
+            ).stdout.strip()
+            or None
+        )
+        dirty = bool(
+            subprocess.run(
+                ["git", "-C", str(REPO), "status", "--porcelain", "--", "prismbatch"],
+                capture_output=True,
+                text=True,
+                check=False,
+            ).stdout.strip()
+        )
     except OSError:
         commit, dirty = None, None
     try:
@@ -511,19 +551,25 @@ def markdown_report(results, infos, meta, comp):
     th = meta["machine"]["numba_threads"]
     L.append("## prismbatch core benchmark\n")
     m = meta["machine"]
-    L.append(f"Machine: {m['cpu_model']}, {m['logical_cpus']} logical CPUs, Numba threads "
-             f"{th} ({m['numba_threading_layer']}); Python {m['python']}, numpy {m['numpy']}, "
-             f"numba {m['numba']}, python-fcl {m['python-fcl']}, coal {m['coal']}, "
-             f"prismbatch {m['prismbatch']} @ {str(m['git_commit'])[:10]}"
-             f"{' (+uncommitted changes)' if m['prismbatch_worktree_dirty'] else ''}.\n")
+    L.append(
+        f"Machine: {m['cpu_model']}, {m['logical_cpus']} logical CPUs, Numba threads "
+        f"{th} ({m['numba_threading_layer']}); Python {m['python']}, numpy {m['numpy']}, "
+        f"numba {m['numba']}, python-fcl {m['python-fcl']}, coal {m['coal']}, "
+        f"prismbatch {m['prismbatch']} @ {str(m['git_commit'])[:10]}"
+        f"{' (+uncommitted changes)' if m['prismbatch_worktree_dirty'] else ''}.\n"
+    )
     a = meta["args"]
-    L.append(f"Pairs per set: {a['n_pairs']} for prismbatch; peers on the first {a['n_peer']} of "
-             f"them (prismbatch re-timed on exactly those). Repeats: {a['repeats']} "
-             f"(peers {a['peer_repeats']}); medians. Shapes: regular n-gons of radius "
-             f"{RADIUS_A} (a) and {RADIUS_B} (b). Per-pair times in µs.\n")
+    L.append(
+        f"Pairs per set: {a['n_pairs']} for prismbatch; peers on the first {a['n_peer']} of "
+        f"them (prismbatch re-timed on exactly those). Repeats: {a['repeats']} "
+        f"(peers {a['peer_repeats']}); medians. Shapes: regular n-gons of radius "
+        f"{RADIUS_A} (a) and {RADIUS_B} (b). Per-pair times in µs.\n"
+    )
     L.append("### Summary (per pair, µs, median)\n")
-    L.append("| n | poses | hit % | pb 1T status | pb 1T contact | pb all-T status "
-             "| pb 1T status (subset) | FCL | coal | FCL / pb 1T | coal / pb 1T | target |")
+    L.append(
+        "| n | poses | hit % | pb 1T status | pb 1T contact | pb all-T status "
+        "| pb 1T status (subset) | FCL | coal | FCL / pb 1T | coal / pb 1T | target |"
+    )
     L.append("|---:|:---|---:|---:|---:|---:|---:|---:|---:|---:|---:|:---|")
     for (n, pose), rows in results.items():
         info = infos[(n, pose)]
@@ -532,35 +578,45 @@ def markdown_report(results, infos, meta, comp):
         coal_r = rows["sub_coal"]["median_us"] / sub if "sub_coal" in rows else float("nan")
         tgt = TARGETS.get(n)
         tgt_s = "–" if tgt is None else (f"≥{tgt:.0f}x: " + ("met" if fcl_r >= tgt else "NOT met"))
-        L.append(f"| {n} | {pose} | {100 * info['hit_fraction']:.1f} | {_cell(rows, 'pb_1t_status')} "
-                 f"| {_cell(rows, 'pb_1t_contact')} | {_cell(rows, 'pb_all_status')} "
-                 f"| {_cell(rows, 'sub_pb_1t_status')} | {_cell(rows, 'sub_fcl')} "
-                 f"| {_cell(rows, 'sub_coal')} | {fcl_r:.1f}x | {coal_r:.1f}x | {tgt_s} |")
+        L.append(
+            f"| {n} | {pose} | {100 * info['hit_fraction']:.1f} | {_cell(rows, 'pb_1t_status')} "
+            f"| {_cell(rows, 'pb_1t_contact')} | {_cell(rows, 'pb_all_status')} "
+            f"| {_cell(rows, 'sub_pb_1t_status')} | {_cell(rows, 'sub_fcl')} "
+            f"| {_cell(rows, 'sub_coal')} | {fcl_r:.1f}x | {coal_r:.1f}x | {tgt_s} |"
+        )
     L.append("")
-    L.append("### Detail: median [min–max] µs per pair; thread use = process CPU time / wall time; "
-             "1-pair call = latency (µs) of one Collider.collide call on one pair, and of one "
-             "Collider.collide_pair call (the low-latency path); other procs = "
-             "CPUs kept busy by other processes during the cell (from /proc/stat)\n")
-    L.append("| n | poses | pb 1T status | pb 1T contact | contact overhead | pb all-T status "
-             "| pb all-T contact | all-T speed-up | all-T thread use | kernel-only 1T | "
-             "kernel-only all-T (thread use) | FCL | coal | 1-pair call | collide_pair call | other procs (CPUs) |")
+    L.append(
+        "### Detail: median [min–max] µs per pair; thread use = process CPU time / wall time; "
+        "1-pair call = latency (µs) of one Collider.collide call on one pair, and of one "
+        "Collider.collide_pair call (the low-latency path); other procs = "
+        "CPUs kept busy by other processes during the cell (from /proc/stat)\n"
+    )
+    L.append(
+        "| n | poses | pb 1T status | pb 1T contact | contact overhead | pb all-T status "
+        "| pb all-T contact | all-T speed-up | all-T thread use | kernel-only 1T | "
+        "kernel-only all-T (thread use) | FCL | coal | 1-pair call | collide_pair call | other procs (CPUs) |"
+    )
     L.append("|---:|:---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for (n, pose), rows in results.items():
         s1, c1 = rows["pb_1t_status"]["median_us"], rows["pb_1t_contact"]["median_us"]
         sa = rows["pb_all_status"]["median_us"]
         ka = rows.get("kernel_all_status")
         ka_s = f"{_spread(rows, 'kernel_all_status')} ({ka['cpu_per_wall']:.2f})" if ka else "–"
-        L.append(f"| {n} | {pose} | {_spread(rows, 'pb_1t_status')} | {_spread(rows, 'pb_1t_contact')} "
-                 f"| {100 * (c1 / s1 - 1):+.0f}% | {_spread(rows, 'pb_all_status')} "
-                 f"| {_spread(rows, 'pb_all_contact')} | {s1 / sa:.2f}x "
-                 f"| {rows['pb_all_status']['cpu_per_wall']:.2f} | {_spread(rows, 'kernel_1t_status')} "
-                 f"| {ka_s} | {_spread(rows, 'sub_fcl')} | {_spread(rows, 'sub_coal')} "
-                 f"| {_cell(rows, 'pb_1t_single_pair_call')} | {_cell(rows, 'pb_collide_pair_call')} "
-                 f"| {_fmt(infos[(n, pose)]['other_processes_cpus'])} |")
+        L.append(
+            f"| {n} | {pose} | {_spread(rows, 'pb_1t_status')} | {_spread(rows, 'pb_1t_contact')} "
+            f"| {100 * (c1 / s1 - 1):+.0f}% | {_spread(rows, 'pb_all_status')} "
+            f"| {_spread(rows, 'pb_all_contact')} | {s1 / sa:.2f}x "
+            f"| {rows['pb_all_status']['cpu_per_wall']:.2f} | {_spread(rows, 'kernel_1t_status')} "
+            f"| {ka_s} | {_spread(rows, 'sub_fcl')} | {_spread(rows, 'sub_coal')} "
+            f"| {_cell(rows, 'pb_1t_single_pair_call')} | {_cell(rows, 'pb_collide_pair_call')} "
+            f"| {_fmt(infos[(n, pose)]['other_processes_cpus'])} |"
+        )
     L.append("")
     L.append("### Agreement on the peer subset (peers use finite stand-ins)\n")
-    L.append("| n | poses | subset | stand-in length | FCL disagreements (pb hit / peer hit) "
-             "| coal disagreements (pb hit / peer hit) | serial≠parallel | status≠contact |")
+    L.append(
+        "| n | poses | subset | stand-in length | FCL disagreements (pb hit / peer hit) "
+        "| coal disagreements (pb hit / peer hit) | serial≠parallel | status≠contact |"
+    )
     L.append("|---:|:---|---:|---:|---:|---:|---:|---:|")
     for (n, pose), info in infos.items():
         ag = info["agreement"]
@@ -573,27 +629,39 @@ def markdown_report(results, infos, meta, comp):
             if x.get("lp_checked"):
                 s += f"; LP sides with pb in {x['lp_pb_right']}/{x['lp_checked']}"
             return s
-        L.append(f"| {n} | {pose} | {ag['fcl']['n']} | {info['standin_length']:.1f} | {d('fcl')} "
-                 f"| {d('coal')} | {info['serial_vs_parallel_hit_mismatches']} "
-                 f"| {info['status_vs_contact_hit_mismatches']} |")
+
+        L.append(
+            f"| {n} | {pose} | {ag['fcl']['n']} | {info['standin_length']:.1f} | {d('fcl')} "
+            f"| {d('coal')} | {info['serial_vs_parallel_hit_mismatches']} "
+            f"| {info['status_vs_contact_hit_mismatches']} |"
+        )
     L.append("")
-    L.append("LP = exact margin of the semi-infinite bodies (tests/reference.py); where it sides "
-             "with prismbatch, the disagreement comes from the peers' finite stand-ins. "
-             "Reproducers: disagreements.json.\n")
-    busy = [f"{n}/{pose}" for (n, pose), rows in results.items()
-            if th > 1 and rows["pb_all_status"]["cpu_per_wall"] < 0.75 * th]
+    L.append(
+        "LP = exact margin of the semi-infinite bodies (tests/reference.py); where it sides "
+        "with prismbatch, the disagreement comes from the peers' finite stand-ins. "
+        "Reproducers: disagreements.json.\n"
+    )
+    busy = [
+        f"{n}/{pose}"
+        for (n, pose), rows in results.items()
+        if th > 1 and rows["pb_all_status"]["cpu_per_wall"] < 0.75 * th
+    ]
     if busy:
-        L.append(f"**Warning:** all-thread runs used fewer than {0.75 * th:.1f} of {th} CPUs in "
-                 f"{', '.join(busy)}: other processes competing for cores, or the Numba cache "
-                 f"served the serial kernel for parallel=True (see 'other procs' in the detail table; "
-                 f"load average at start {meta['load_avg_1min_at_start']}).\n")
+        L.append(
+            f"**Warning:** all-thread runs used fewer than {0.75 * th:.1f} of {th} CPUs in "
+            f"{', '.join(busy)}: other processes competing for cores, or the Numba cache "
+            f"served the serial kernel for parallel=True (see 'other procs' in the detail table; "
+            f"load average at start {meta['load_avg_1min_at_start']}).\n"
+        )
     if comp:
         L.append("### First call (Numba compile), fresh subprocess, 10 pairs\n")
         L.append("| kernel | cold: 1st − 2nd call (s) | cached: 1st − 2nd call (s) | import (s) |")
         L.append("|:---|---:|---:|---:|")
         for kind, r in comp.items():
-            L.append(f"| {kind} | {r['cold']['first_minus_second_s']:.2f} "
-                     f"| {r['cached']['first_minus_second_s']:.3f} | {r['cold']['import_s']:.2f} |")
+            L.append(
+                f"| {kind} | {r['cold']['first_minus_second_s']:.2f} "
+                f"| {r['cached']['first_minus_second_s']:.3f} | {r['cold']['import_s']:.2f} |"
+            )
         L.append("")
     return "\n".join(L)
 
@@ -602,16 +670,31 @@ def write_outputs(out_dir, results, infos, meta, repro):
     out_dir.mkdir(parents=True, exist_ok=True)
     if out_dir.resolve() == (HERE / "results").resolve() and not (out_dir / ".gitignore").exists():
         (out_dir / ".gitignore").write_text("# benchmark output, not committed\n*\n")
-    fields = ["n", "poses", "measure", "median_us", "min_us", "max_us", "q1_us", "q3_us",
-              "repeats", "n_pairs", "cpu_per_wall", "cpu_per_wall_timed", "other_cpus", "attempts",
-              "hit_fraction"]
+    fields = [
+        "n",
+        "poses",
+        "measure",
+        "median_us",
+        "min_us",
+        "max_us",
+        "q1_us",
+        "q3_us",
+        "repeats",
+        "n_pairs",
+        "cpu_per_wall",
+        "cpu_per_wall_timed",
+        "other_cpus",
+        "attempts",
+        "hit_fraction",
+    ]
     with open(out_dir / "results.csv", "w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=fields, extrasaction="ignore")
         w.writeheader()
         for (n, pose), rows in results.items():
             for key, r in rows.items():
-                w.writerow({"n": n, "poses": pose, "measure": key,
-                            "hit_fraction": infos[(n, pose)]["hit_fraction"], **r})
+                w.writerow(
+                    {"n": n, "poses": pose, "measure": key, "hit_fraction": infos[(n, pose)]["hit_fraction"], **r}
+                )
     meta = dict(meta, cells=[dict(v) for v in infos.values()])
     (out_dir / "meta.json").write_text(json.dumps(meta, indent=2, default=str))
     (out_dir / "disagreements.json").write_text(json.dumps(repro, indent=2))
@@ -621,35 +704,43 @@ def write_outputs(out_dir, results, infos, meta, repro):
 def parse_args(argv=None):
     p = argparse.ArgumentParser(
         description="Per-pair collision time of prismbatch vs python-fcl and coal "
-                    "(36/360/3600 vertices, facing and free poses, 1 and all threads, "
-                    "status vs contact, first-call compile time).")
-    p.add_argument("--quick", action="store_true",
-                   help="smaller batches and fewer repeats (well under a minute)")
-    p.add_argument("--out", type=Path, default=HERE / "results",
-                   help="output directory for results.csv, meta.json, disagreements.json "
-                        "(default: benchmarks/results/)")
-    p.add_argument("--sizes", type=int, nargs="+", default=list(SIZES),
-                   help="polygon vertex counts (default: 36 360 3600)")
-    p.add_argument("--poses", nargs="+", choices=list(POSE_SETS), default=list(POSE_SETS),
-                   help="pose sets (default: facing free)")
-    p.add_argument("--n-pairs", type=int, default=None,
-                   help="pairs per set for prismbatch (default 50000; quick 4000)")
-    p.add_argument("--n-peer", type=int, default=None,
-                   help="pairs of the same set timed with the peers (default 10000; quick 400)")
-    p.add_argument("--repeats", type=int, default=None,
-                   help="timed repeats for prismbatch (default 9; quick 3)")
-    p.add_argument("--peer-repeats", type=int, default=None,
-                   help="timed repeats for the peers (default 5; quick 2)")
+        "(36/360/3600 vertices, facing and free poses, 1 and all threads, "
+        "status vs contact, first-call compile time)."
+    )
+    p.add_argument("--quick", action="store_true", help="smaller batches and fewer repeats (well under a minute)")
+    p.add_argument(
+        "--out",
+        type=Path,
+        default=HERE / "results",
+        help="output directory for results.csv, meta.json, disagreements.json (default: benchmarks/results/)",
+    )
+    p.add_argument(
+        "--sizes", type=int, nargs="+", default=list(SIZES), help="polygon vertex counts (default: 36 360 3600)"
+    )
+    p.add_argument(
+        "--poses", nargs="+", choices=list(POSE_SETS), default=list(POSE_SETS), help="pose sets (default: facing free)"
+    )
+    p.add_argument("--n-pairs", type=int, default=None, help="pairs per set for prismbatch (default 50000; quick 4000)")
+    p.add_argument(
+        "--n-peer", type=int, default=None, help="pairs of the same set timed with the peers (default 10000; quick 400)"
+    )
+    p.add_argument("--repeats", type=int, default=None, help="timed repeats for prismbatch (default 9; quick 3)")
+    p.add_argument("--peer-repeats", type=int, default=None, help="timed repeats for the peers (default 5; quick 2)")
     p.add_argument("--seed", type=int, default=20240611, help="random seed")
-    p.add_argument("--max-repro", type=int, default=20,
-                   help="disagreements per cell written with reproducers (default 20)")
-    p.add_argument("--wait-idle", type=float, default=0.0, metavar="SECONDS",
-                   help="shared machine: before each cell and the compile runs, and again when a "
-                        "measurement was disturbed (then it is repeated, up to 3 times), wait "
-                        "for other processes to leave the CPUs idle, spending at most SECONDS "
-                        "in total on waiting (default 0: never wait)")
-    p.add_argument("--skip-compile", action="store_true",
-                   help="skip the first-call compile-time subprocesses")
+    p.add_argument(
+        "--max-repro", type=int, default=20, help="disagreements per cell written with reproducers (default 20)"
+    )
+    p.add_argument(
+        "--wait-idle",
+        type=float,
+        default=0.0,
+        metavar="SECONDS",
+        help="shared machine: before each cell and the compile runs, and again when a "
+        "measurement was disturbed (then it is repeated, up to 3 times), wait "
+        "for other processes to leave the CPUs idle, spending at most SECONDS "
+        "in total on waiting (default 0: never wait)",
+    )
+    p.add_argument("--skip-compile", action="store_true", help="skip the first-call compile-time subprocesses")
     args = p.parse_args(argv)
     q = args.quick
     if args.n_pairs is None:
@@ -694,9 +785,11 @@ def main(argv=None):
             results[(n, pose)] = rows
             infos[(n, pose)] = info
             repro.extend(rp)
-            log(f"n={n:5d} {pose:6s}: pb 1T {rows['pb_1t_status']['median_us']:.3f} µs, "
+            log(
+                f"n={n:5d} {pose:6s}: pb 1T {rows['pb_1t_status']['median_us']:.3f} µs, "
                 f"FCL {rows['sub_fcl']['median_us']:.2f} µs, "
-                f"disagreements {info['agreement']} ({time.perf_counter() - t0:.1f} s)")
+                f"disagreements {info['agreement']} ({time.perf_counter() - t0:.1f} s)"
+            )
 
     meta = {
         "machine": machine_info(),
@@ -712,7 +805,8 @@ def main(argv=None):
             "pb 1T = Collider.collide(parallel=False) under numba.set_num_threads(1)",
             "pb all-T = Collider.collide(parallel=True) with all Numba threads",
             "kernel-only = prismbatch._kernels.batch.run (private), no pose validation/conversion",
-            "1-pair call = latency of Collider.collide on a single pair (1 thread); collide_pair call = latency of Collider.collide_pair",
+            "1-pair call = latency of Collider.collide on a single pair (1 thread); "
+            "collide_pair call = latency of Collider.collide_pair",
             "thread use = process CPU time / wall time over >= 0.4 s of back-to-back calls",
             "peers: per query 2x setTransform + collide with fresh request/result; objects built once",
             "coal stand-ins use strip-triangulated caps (peers.coal_prism's fan fails for n >= ~256)",

@@ -34,15 +34,25 @@ def _demo(args):
     from .collide import CASES
     from .lab.demo import run_demo
 
-    res = run_demo(n_pairs=args.pairs, n_vertices=args.vertices, distribution=args.distribution,
-                   seed=args.seed, contact=args.contact, parallel=args.threads != 1,
-                   progress=not args.no_progress and sys.stderr.isatty())
-    print(f"prismbatch {__version__} demo: {res['n_pairs']:,} pose pairs, {res['distribution']} poses, "
-          f"{res['n_vertices']}-gon vs {res['n_vertices']}-gon, seed {res['seed']}, "
-          f"{res['threads']} thread(s), contact={'yes' if res['contact'] else 'no'}")
+    res = run_demo(
+        n_pairs=args.pairs,
+        n_vertices=args.vertices,
+        distribution=args.distribution,
+        seed=args.seed,
+        contact=args.contact,
+        parallel=args.threads != 1,
+        progress=not args.no_progress and sys.stderr.isatty(),
+    )
+    print(
+        f"prismbatch {__version__} demo: {res['n_pairs']:,} pose pairs, {res['distribution']} poses, "
+        f"{res['n_vertices']}-gon vs {res['n_vertices']}-gon, seed {res['seed']}, "
+        f"{res['threads']} thread(s), contact={'yes' if res['contact'] else 'no'}"
+    )
     print(f"first call (compile or cache load): {res['compile_s']:.2f} s")
-    print(f"run time: {res['run_s']:.3f} s   throughput: {res['pairs_per_s'] / 1e6:.2f} M pairs/s "
-          f"({1e9 / res['pairs_per_s']:.0f} ns per pair)")
+    print(
+        f"run time: {res['run_s']:.3f} s   throughput: {res['pairs_per_s'] / 1e6:.2f} M pairs/s "
+        f"({1e9 / res['pairs_per_s']:.0f} ns per pair)"
+    )
     print(f"hits: {res['hits']:,} ({100.0 * res['hits'] / res['n_pairs']:.1f} %)")
     print("case  pairs       share  meaning")
     for k, v in sorted(res["case_counts"].items()):
@@ -53,9 +63,18 @@ def _demo(args):
 def _experiment(args):
     from .lab.experiment import format_summary, run_experiment, write_experiment
 
-    res = run_experiment(args.prism, vertices=args.vertices, plant=args.plant, duration=args.duration, dt=args.dt,
-                         max_speed=args.max_speed, mass=args.mass, damping=args.damping, detach_tol=args.detach_tol,
-                         fcl=not args.no_fcl)
+    res = run_experiment(
+        args.prism,
+        vertices=args.vertices,
+        plant=args.plant,
+        duration=args.duration,
+        dt=args.dt,
+        max_speed=args.max_speed,
+        mass=args.mass,
+        damping=args.damping,
+        detach_tol=args.detach_tol,
+        fcl=not args.no_fcl,
+    )
     for line in format_summary(res):
         print(line)
     if args.out is None:
@@ -89,17 +108,26 @@ def _name_list(text):
 
 def _print_paths(paths):
     for key, v in paths.items():
-        for f in (v if isinstance(v, (list, tuple)) else [v]):
+        for f in v if isinstance(v, (list, tuple)) else [v]:
             print(f"wrote {f}")
 
 
 def _study(args):
     from .lab.study import format_study, run_study, write_study
 
-    res = run_study(vertices=args.vertices, cases=args.cases or tuple(range(1, 12)), poses_per_case=args.poses,
-                    repeats=args.repeats, batch_pairs=args.batch_pairs, peers=args.peers, seed=args.seed,
-                    quick=args.quick, progress=_show_progress(args), lp_checks=args.lp_checks,
-                    table_vertices=args.table_vertices)
+    res = run_study(
+        vertices=args.vertices,
+        cases=args.cases or tuple(range(1, 12)),
+        poses_per_case=args.poses,
+        repeats=args.repeats,
+        batch_pairs=args.batch_pairs,
+        peers=args.peers,
+        seed=args.seed,
+        quick=args.quick,
+        progress=_show_progress(args),
+        lp_checks=args.lp_checks,
+        table_vertices=args.table_vertices,
+    )
     for line in format_study(res):
         print(line)
     if args.out is not None:
@@ -117,14 +145,30 @@ def _validate(args):
     if len(dists) < len(args.distributions):  # "stiff" names the stiff suite, which has its own generators
         stiff = stiff or True
     if not dists:
-        raise ValueError("--distributions needs at least one of facing, free, near-contact, degenerate "
-                         "(stiff adds the stiff suite to them)")
+        raise ValueError(
+            "--distributions needs at least one of facing, free, near-contact, degenerate "
+            "(stiff adds the stiff suite to them)"
+        )
     shapes = args.shapes[0] if len(args.shapes) == 1 else args.shapes
-    res = validate(args.pairs, distributions=dists, shapes=shapes, vertices=args.vertices,
-                   seed=args.seed, chunk_size=args.chunk_size, dtype=args.dtype, rtol=args.rtol, atol=args.atol,
-                   fcl=args.fcl_fraction if args.fcl_fraction is not None else args.fcl, lp_samples=args.lp_samples,
-                   contact_check=not args.no_contact_check, max_band_records=args.max_band_records, stiff=stiff,
-                   scheduler=args.scheduler, workers=args.workers, progress=_show_progress(args))
+    res = validate(
+        args.pairs,
+        distributions=dists,
+        shapes=shapes,
+        vertices=args.vertices,
+        seed=args.seed,
+        chunk_size=args.chunk_size,
+        dtype=args.dtype,
+        rtol=args.rtol,
+        atol=args.atol,
+        fcl=args.fcl_fraction if args.fcl_fraction is not None else args.fcl,
+        lp_samples=args.lp_samples,
+        contact_check=not args.no_contact_check,
+        max_band_records=args.max_band_records,
+        stiff=stiff,
+        scheduler=args.scheduler,
+        workers=args.workers,
+        progress=_show_progress(args),
+    )
     for line in format_validation(res):
         print(line)
     if args.out is not None:
@@ -137,8 +181,16 @@ def _validate(args):
 def _workprec(args):
     from .lab.workprec import format_work_precision, run_work_precision, write_work_precision
 
-    res = run_work_precision(vertices=args.vertices, n_poses=args.poses, radius=args.radius, repeats=args.repeats,
-                             seed=args.seed, quick=args.quick, progress=_show_progress(args), fcl=args.fcl)
+    res = run_work_precision(
+        vertices=args.vertices,
+        n_poses=args.poses,
+        radius=args.radius,
+        repeats=args.repeats,
+        seed=args.seed,
+        quick=args.quick,
+        progress=_show_progress(args),
+        fcl=args.fcl,
+    )
     for line in format_work_precision(res):
         print(line)
     if args.out is not None:
@@ -149,8 +201,9 @@ def _workprec(args):
 def _reproduce(args):
     from .lab.reproduce import run_reproduce
 
-    res = run_reproduce(args.out, quick=args.quick, seed=args.seed, parts=args.parts or None,
-                        progress_bar=_show_progress(args))
+    res = run_reproduce(
+        args.out, quick=args.quick, seed=args.seed, parts=args.parts or None, progress_bar=_show_progress(args)
+    )
     print(f"wrote {len(res['files'])} files to {args.out}; report: {res['report']}")
     return 0
 
@@ -182,152 +235,311 @@ def _replay(args):
 def build_parser():
     """The argument parser (exposed for documentation and tests)."""
     p = argparse.ArgumentParser(
-        prog="prismbatch",
-        description="Batched collision detection between convex semi-infinite prisms.")
+        prog="prismbatch", description="Batched collision detection between convex semi-infinite prisms."
+    )
     p.add_argument("--version", action="version", version=f"prismbatch {__version__}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
-    d = sub.add_parser("demo", help="collide a batch of random pose pairs and print throughput and case counts",
-                       description="Collide random pose pairs of the paper's scene (pentagon-sized a, "
-                                   "hexagon-sized b, both regular n-gons) and print throughput and case counts.")
-    d.add_argument("--pairs", type=int, default=1_000_000, help="number of pose pairs (default: 1,000,000)")
-    d.add_argument("--vertices", type=int, default=360, help="vertices of each end face (default: 360)")
-    d.add_argument("--distribution", choices=["facing", "free"], default="facing",
-                   help="pose distribution: the paper's facing scene or uniform random (default: facing)")
-    d.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
-    d.add_argument("--threads", type=int, default=0,
-                   help="1 for the serial kernel, k > 1 for k threads, 0 for all of Numba's threads (default: 0)")
-    d.add_argument("--contact", action="store_true", help="also compute contact points")
-    d.add_argument("--no-progress", action="store_true", help="no progress bar")
-    d.set_defaults(func=_demo)
-    e = sub.add_parser("experiment", help="simulate the paper's manipulation experiment (Sec. VI-B) with detach control",
-                       description="Simulate the paper's experiment: b (a 1.5 mm protective cylinder) is driven by a "
-                                   "PD attraction from dC = [2551, -2780, -1970] um to [0, 0, 1000] um past prism a; "
-                                   "collisions trigger the detach controller for one step. Prints the case sequence, "
-                                   "collisions, contact classes, whether the goal is reached, and the detection cost "
-                                   "against python-fcl on the same trajectory. See docs/methods/experiment.md.")
-    e.add_argument("--prism", choices=_LabChoices(".lab.experiment", "PRISMS"), default="square",
-                   help="object a: square prism, side 3 mm, or triangular prism, side 2.8 mm (default: square)")
-    e.add_argument("--vertices", type=int, default=3600, help="vertices of b's end face (default: 3600)")
-    e.add_argument("--plant", choices=_LabChoices(".lab.experiment", "PLANTS"), default="velocity",
-                   help="velocity: the stage follows the commanded velocity; force: m dv/dt = u - c v "
-                        "(default: velocity)")
-    e.add_argument("--duration", type=float, default=20.0, help="simulated time in s (default: 20)")
-    e.add_argument("--dt", type=float, default=0.02, help="sampling period in s (default: 0.02)")
-    e.add_argument("--max-speed", type=float, default=None,
-                   help="limit the PD command to this speed in mm/s (default: no limit)")
-    e.add_argument("--mass", type=float, default=0.1, help="force plant: mass in kg (default: 0.1)")
-    e.add_argument("--damping", type=float, default=1.0, help="force plant: viscous friction in mN s/mm (default: 1)")
-    e.add_argument("--detach-tol", type=float, default=None, metavar="MM",
-                   help="tolerance (mm) for classifying the contact point on a's features "
-                        "(default: the distance b moved in the last step)")
-    e.add_argument("--out", default=None, metavar="DIR",
-                   help="write CSV, JSON, Markdown and figures (PNG, SVG) to DIR (default: print only)")
-    e.add_argument("--no-figures", action="store_true", help="with --out: skip the figures (no matplotlib needed)")
-    e.add_argument("--no-fcl", action="store_true", help="skip the python-fcl timing")
-    e.set_defaults(func=_experiment)
-    v = sub.add_parser("validate", help="Monte Carlo validation against python-fcl and an exact LP, per case",
-                       description="Draw N pose pairs per distribution, run prismbatch, python-fcl on finite "
-                                   "stand-ins and an exact LP (signed margin) on a subsample plus every disagreement, "
-                                   "and report per case: confusion matrices, disagreements inside and outside the "
-                                   "touching band, contact validity, NaN/inf and timings. Every disagreement goes to a "
-                                   "replay file ('prismbatch replay FILE'). Exit status 1 if any disagreement lies "
-                                   "outside the band, a contact is invalid or an output is non-finite.")
-    v.add_argument("--pairs", type=int, default=100_000, metavar="N", help="pairs per distribution (default: 100,000)")
-    v.add_argument("--distributions", type=_name_list, default=("facing", "free", "near-contact", "degenerate"),
-                   metavar="NAME,...", help="facing, free, near-contact, degenerate, and stiff (the stiff and extreme suite, "
-                        "same as --stiff) (default: the first four)")
-    v.add_argument("--shapes", type=_name_list, default=("regular",), metavar="KIND,...",
-                   help="regular, random (convex polygons), cylinder (n-gon fits); several are cycled per block "
-                        "(default: regular)")
-    v.add_argument("--vertices", type=_int_list, default=(36, 360), metavar="N,N,...",
-                   help="vertex counts, cycled per block (default: 36,360)")
-    v.add_argument("--seed", type=int, default=0, help="random seed; results do not depend on chunking or workers "
-                                                      "(default: 0)")
-    v.add_argument("--chunk-size", type=int, default=50_000, metavar="N",
-                   help="pairs per task: bounds memory (default: 50,000)")
-    v.add_argument("--dtype", choices=["float64", "float32"], default="float64", help="precision (default: float64)")
-    v.add_argument("--rtol", type=float, default=None, help="relative tolerance (default: 1e-9 f64, 1e-5 f32)")
-    v.add_argument("--atol", type=float, default=0.0, help="absolute tolerance (default: 0)")
-    v.add_argument("--no-fcl", dest="fcl", action="store_false", help="skip python-fcl")
-    v.add_argument("--fcl-fraction", type=float, default=None, metavar="F",
-                   help="run python-fcl on this random fraction of the pairs (default: all)")
-    v.add_argument("--lp-samples", type=int, default=2000, metavar="N",
-                   help="random pairs per distribution checked by the exact LP (default: 2000)")
-    v.add_argument("--no-contact-check", action="store_true", help="do not check contact points")
-    v.add_argument("--max-band-records", type=int, default=1000, metavar="N",
-                   help="keep at most N 'inside band' records in the replay file (all are counted; default: 1000)")
-    g = v.add_mutually_exclusive_group()
+    _demo_parser(sub)
+    _experiment_parser(sub)
+    _validate_parser(sub)
+    _study_parser(sub)
+    _workprec_parser(sub)
+    _reproduce_parser(sub)
+    _replay_parser(sub)
+    return p
+
+
+def _demo_parser(sub):
+    """The ``demo`` subcommand's options."""
+    p = sub.add_parser(
+        "demo",
+        help="collide a batch of random pose pairs and print throughput and case counts",
+        description="Collide random pose pairs of the paper's scene (pentagon-sized a, "
+        "hexagon-sized b, both regular n-gons) and print throughput and case counts.",
+    )
+    p.add_argument("--pairs", type=int, default=1_000_000, help="number of pose pairs (default: 1,000,000)")
+    p.add_argument("--vertices", type=int, default=360, help="vertices of each end face (default: 360)")
+    p.add_argument(
+        "--distribution",
+        choices=["facing", "free"],
+        default="facing",
+        help="pose distribution: the paper's facing scene or uniform random (default: facing)",
+    )
+    p.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
+    p.add_argument(
+        "--threads",
+        type=int,
+        default=0,
+        help="1 for the serial kernel, k > 1 for k threads, 0 for all of Numba's threads (default: 0)",
+    )
+    p.add_argument("--contact", action="store_true", help="also compute contact points")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=_demo)
+
+
+def _experiment_parser(sub):
+    """The ``experiment`` subcommand's options."""
+    p = sub.add_parser(
+        "experiment",
+        help="simulate the paper's manipulation experiment (Sec. VI-B) with detach control",
+        description="Simulate the paper's experiment: b (a 1.5 mm protective cylinder) is driven by a "
+        "PD attraction from dC = [2551, -2780, -1970] um to [0, 0, 1000] um past prism a; "
+        "collisions trigger the detach controller for one step. Prints the case sequence, "
+        "collisions, contact classes, whether the goal is reached, and the detection cost "
+        "against python-fcl on the same trajectory. See docs/methods/experiment.md.",
+    )
+    p.add_argument(
+        "--prism",
+        choices=_LabChoices(".lab.experiment", "PRISMS"),
+        default="square",
+        help="object a: square prism, side 3 mm, or triangular prism, side 2.8 mm (default: square)",
+    )
+    p.add_argument("--vertices", type=int, default=3600, help="vertices of b's end face (default: 3600)")
+    p.add_argument(
+        "--plant",
+        choices=_LabChoices(".lab.experiment", "PLANTS"),
+        default="velocity",
+        help="velocity: the stage follows the commanded velocity; force: m dv/dt = u - c v (default: velocity)",
+    )
+    p.add_argument("--duration", type=float, default=20.0, help="simulated time in s (default: 20)")
+    p.add_argument("--dt", type=float, default=0.02, help="sampling period in s (default: 0.02)")
+    p.add_argument(
+        "--max-speed", type=float, default=None, help="limit the PD command to this speed in mm/s (default: no limit)"
+    )
+    p.add_argument("--mass", type=float, default=0.1, help="force plant: mass in kg (default: 0.1)")
+    p.add_argument("--damping", type=float, default=1.0, help="force plant: viscous friction in mN s/mm (default: 1)")
+    p.add_argument(
+        "--detach-tol",
+        type=float,
+        default=None,
+        metavar="MM",
+        help="tolerance (mm) for classifying the contact point on a's features "
+        "(default: the distance b moved in the last step)",
+    )
+    p.add_argument(
+        "--out",
+        default=None,
+        metavar="DIR",
+        help="write CSV, JSON, Markdown and figures (PNG, SVG) to DIR (default: print only)",
+    )
+    p.add_argument("--no-figures", action="store_true", help="with --out: skip the figures (no matplotlib needed)")
+    p.add_argument("--no-fcl", action="store_true", help="skip the python-fcl timing")
+    p.set_defaults(func=_experiment)
+
+
+def _validate_parser(sub):
+    """The ``validate`` subcommand's options."""
+    p = sub.add_parser(
+        "validate",
+        help="Monte Carlo validation against python-fcl and an exact LP, per case",
+        description="Draw N pose pairs per distribution, run prismbatch, python-fcl on finite "
+        "stand-ins and an exact LP (signed margin) on a subsample plus every disagreement, "
+        "and report per case: confusion matrices, disagreements inside and outside the "
+        "touching band, contact validity, NaN/inf and timings. Every disagreement goes to a "
+        "replay file ('prismbatch replay FILE'). Exit status 1 if any disagreement lies "
+        "outside the band, a contact is invalid or an output is non-finite.",
+    )
+    p.add_argument("--pairs", type=int, default=100_000, metavar="N", help="pairs per distribution (default: 100,000)")
+    p.add_argument(
+        "--distributions",
+        type=_name_list,
+        default=("facing", "free", "near-contact", "degenerate"),
+        metavar="NAME,...",
+        help="facing, free, near-contact, degenerate, and stiff (the stiff and extreme suite, "
+        "same as --stiff) (default: the first four)",
+    )
+    p.add_argument(
+        "--shapes",
+        type=_name_list,
+        default=("regular",),
+        metavar="KIND,...",
+        help="regular, random (convex polygons), cylinder (n-gon fits); several are cycled per block "
+        "(default: regular)",
+    )
+    p.add_argument(
+        "--vertices",
+        type=_int_list,
+        default=(36, 360),
+        metavar="N,N,...",
+        help="vertex counts, cycled per block (default: 36,360)",
+    )
+    p.add_argument(
+        "--seed", type=int, default=0, help="random seed; results do not depend on chunking or workers (default: 0)"
+    )
+    p.add_argument(
+        "--chunk-size", type=int, default=50_000, metavar="N", help="pairs per task: bounds memory (default: 50,000)"
+    )
+    p.add_argument("--dtype", choices=["float64", "float32"], default="float64", help="precision (default: float64)")
+    p.add_argument("--rtol", type=float, default=None, help="relative tolerance (default: 1e-9 f64, 1e-5 f32)")
+    p.add_argument("--atol", type=float, default=0.0, help="absolute tolerance (default: 0)")
+    p.add_argument("--no-fcl", dest="fcl", action="store_false", help="skip python-fcl")
+    p.add_argument(
+        "--fcl-fraction",
+        type=float,
+        default=None,
+        metavar="F",
+        help="run python-fcl on this random fraction of the pairs (default: all)",
+    )
+    p.add_argument(
+        "--lp-samples",
+        type=int,
+        default=2000,
+        metavar="N",
+        help="random pairs per distribution checked by the exact LP (default: 2000)",
+    )
+    p.add_argument("--no-contact-check", action="store_true", help="do not check contact points")
+    p.add_argument(
+        "--max-band-records",
+        type=int,
+        default=1000,
+        metavar="N",
+        help="keep at most N 'inside band' records in the replay file (all are counted; default: 1000)",
+    )
+    g = p.add_mutually_exclusive_group()
     g.add_argument("--stiff", action="store_true", help="also run the stiff and extreme suite (a few minutes)")
     g.add_argument("--stiff-quick", action="store_true", help="also run a reduced stiff suite (about 20 s)")
-    v.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                   help="send chunks to this Dask scheduler (needs prismbatch[dask])")
-    v.add_argument("--workers", type=int, default=None, metavar="K",
-                   help="start a local Dask cluster of K worker processes (when no --scheduler)")
-    v.add_argument("--out", default=None, metavar="DIR",
-                   help="write validation.md, CSV tables, validation.json and validation_replay.json to DIR")
-    v.add_argument("--no-progress", action="store_true", help="no progress bar")
-    v.set_defaults(func=_validate)
-    st = sub.add_parser("study", help="timing study against python-fcl and coal: Table I, Fig. 7, throughput",
-                        description="Time prismbatch against python-fcl (and coal, when installed) on the same "
-                                    "case-targeted pose pairs: per-case single-query latency at every vertex count "
-                                    "(Table I at 3600 vertices, Fig. 7a-c with fitted growth per 1000 vertices), batch "
-                                    "throughput on one and all threads, compile time apart. Medians of repeats after a "
-                                    "warm-up. Run it on an idle machine.")
-    st.add_argument("--quick", action="store_true",
-                    help="n = 36, 360, 1800, 3600; 100 poses per case; 3 repeats (about a minute)")
-    st.add_argument("--vertices", type=_int_list, default=None, metavar="N,N,...",
-                    help="vertex counts (default: 36,180,360,1800,3600,7200)")
-    st.add_argument("--cases", type=_int_list, default=None, metavar="C,C,...", help="cases (default: 1-11)")
-    st.add_argument("--poses", type=int, default=None, metavar="N", help="poses per case (default: 300)")
-    st.add_argument("--repeats", type=int, default=None, metavar="R", help="timed repeats (default: 5)")
-    st.add_argument("--batch-pairs", type=int, default=None, metavar="N",
-                    help="pairs per batch-throughput call (default: 100,000)")
-    st.add_argument("--peers", type=_name_list, default=("fcl", "coal"), metavar="NAME,...",
-                    help="peers to time: fcl, coal (default: fcl,coal; coal is skipped with a note if missing)")
-    st.add_argument("--table-vertices", type=int, default=3600, metavar="N",
-                    help="vertex count of Table I (default: 3600)")
-    st.add_argument("--lp-checks", type=int, default=10, metavar="K",
-                    help="disagreements per cell arbitrated by the exact LP (default: 10)")
-    _add_output_options(st)
-    st.set_defaults(func=_study)
-    w = sub.add_parser("workprec", help="error against run time: a cylinder as an n-gon prism, vs python-fcl",
-                       description="Work-precision study: a semi-infinite cylinder approximated by an inscribed n-gon "
-                                   "prism against a hexagonal prism, on near-contact poses with exact labels. For "
-                                   "prismbatch float64/float32 (batch call and single query), python-fcl on the n-gon "
-                                   "and python-fcl's Cylinder: misclassification rate (95 %% Wilson intervals, noise "
-                                   "floor) and the geometric error r(1 - cos(pi/n)) against time per query.")
-    w.add_argument("--quick", action="store_true", help="n = 8 ... 10000 (6 values), 10,000 poses, 2 repeats")
-    w.add_argument("--vertices", type=_int_list, default=None, metavar="N,N,...",
-                   help="vertex counts of the n-gon (default: 8 ... 100000, 11 values)")
-    w.add_argument("--poses", type=int, default=None, metavar="N", help="near-contact poses (default: 20,000)")
-    w.add_argument("--radius", type=float, default=1.0, help="cylinder radius (default: 1)")
-    w.add_argument("--repeats", type=int, default=None, metavar="R", help="timed passes (default: 3)")
-    w.add_argument("--no-fcl", dest="fcl", action="store_false", help="skip python-fcl (its rows stay, as NaN)")
-    _add_output_options(w)
-    w.set_defaults(func=_workprec)
-    rp = sub.add_parser("reproduce", help="run validation, timing study, work-precision and experiment; one report",
-                        description="Run a short Monte Carlo validation (with the stiff suite), the timing study "
-                                    "against python-fcl and coal, the work-precision study and the paper's experiment, "
-                                    "and write everything into one folder: figures (PNG, SVG), CSV tables, JSON "
-                                    "metadata (versions, CPU, threads, seeds) and report.md. Needs "
-                                    "'prismbatch[reproduce]'. notebooks/reproduce.ipynb redraws the figures from the CSVs.")
-    rp.add_argument("--quick", action="store_true", help="smaller runs of every part (a few minutes on 2 cores)")
-    rp.add_argument("--out", default="reproduce-output", metavar="DIR",
-                    help="output folder (default: reproduce-output)")
-    rp.add_argument("--parts", type=_name_list, default=None, metavar="PART,...",
-                    help="only these parts: validation, study, workprec, experiment (default: all)")
-    rp.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
-    rp.add_argument("--no-progress", action="store_true", help="no progress bars")
-    rp.set_defaults(func=_reproduce)
-    r = sub.add_parser("replay", help="re-run saved pose pairs and print how each is decided, step by step",
-                       description="Re-run the pose pairs of a replay file (e.g. validation_replay.json written by "
-                                   "'prismbatch validate') and print, for each, b's pose in a's frame, the case "
-                                   "classification, every test on the way and where the decision was made.")
-    r.add_argument("file", help="replay file (JSON)")
-    r.add_argument("--record", type=int, action="append", default=None, metavar="I",
-                   help="only record I (0-based; repeat for several)")
-    r.set_defaults(func=_replay)
-    return p
+    p.add_argument(
+        "--scheduler",
+        default=None,
+        metavar="ADDRESS",
+        help="send chunks to this Dask scheduler (needs prismbatch[dask])",
+    )
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        metavar="K",
+        help="start a local Dask cluster of K worker processes (when no --scheduler)",
+    )
+    p.add_argument(
+        "--out",
+        default=None,
+        metavar="DIR",
+        help="write validation.md, CSV tables, validation.json and validation_replay.json to DIR",
+    )
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=_validate)
+
+
+def _study_parser(sub):
+    """The ``study`` subcommand's options."""
+    p = sub.add_parser(
+        "study",
+        help="timing study against python-fcl and coal: Table I, Fig. 7, throughput",
+        description="Time prismbatch against python-fcl (and coal, when installed) on the same "
+        "case-targeted pose pairs: per-case single-query latency at every vertex count "
+        "(Table I at 3600 vertices, Fig. 7a-c with fitted growth per 1000 vertices), batch "
+        "throughput on one and all threads, compile time apart. Medians of repeats after a "
+        "warm-up. Run it on an idle machine.",
+    )
+    p.add_argument(
+        "--quick", action="store_true", help="n = 36, 360, 1800, 3600; 100 poses per case; 3 repeats (about a minute)"
+    )
+    p.add_argument(
+        "--vertices",
+        type=_int_list,
+        default=None,
+        metavar="N,N,...",
+        help="vertex counts (default: 36,180,360,1800,3600,7200)",
+    )
+    p.add_argument("--cases", type=_int_list, default=None, metavar="C,C,...", help="cases (default: 1-11)")
+    p.add_argument("--poses", type=int, default=None, metavar="N", help="poses per case (default: 300)")
+    p.add_argument("--repeats", type=int, default=None, metavar="R", help="timed repeats (default: 5)")
+    p.add_argument(
+        "--batch-pairs", type=int, default=None, metavar="N", help="pairs per batch-throughput call (default: 100,000)"
+    )
+    p.add_argument(
+        "--peers",
+        type=_name_list,
+        default=("fcl", "coal"),
+        metavar="NAME,...",
+        help="peers to time: fcl, coal (default: fcl,coal; coal is skipped with a note if missing)",
+    )
+    p.add_argument(
+        "--table-vertices", type=int, default=3600, metavar="N", help="vertex count of Table I (default: 3600)"
+    )
+    p.add_argument(
+        "--lp-checks",
+        type=int,
+        default=10,
+        metavar="K",
+        help="disagreements per cell arbitrated by the exact LP (default: 10)",
+    )
+    _add_output_options(p)
+    p.set_defaults(func=_study)
+
+
+def _workprec_parser(sub):
+    """The ``workprec`` subcommand's options."""
+    p = sub.add_parser(
+        "workprec",
+        help="error against run time: a cylinder as an n-gon prism, vs python-fcl",
+        description="Work-precision study: a semi-infinite cylinder approximated by an inscribed n-gon "
+        "prism against a hexagonal prism, on near-contact poses with exact labels. For "
+        "prismbatch float64/float32 (batch call and single query), python-fcl on the n-gon "
+        "and python-fcl's Cylinder: misclassification rate (95 %% Wilson intervals, noise "
+        "floor) and the geometric error r(1 - cos(pi/n)) against time per query.",
+    )
+    p.add_argument("--quick", action="store_true", help="n = 8 ... 10000 (6 values), 10,000 poses, 2 repeats")
+    p.add_argument(
+        "--vertices",
+        type=_int_list,
+        default=None,
+        metavar="N,N,...",
+        help="vertex counts of the n-gon (default: 8 ... 100000, 11 values)",
+    )
+    p.add_argument("--poses", type=int, default=None, metavar="N", help="near-contact poses (default: 20,000)")
+    p.add_argument("--radius", type=float, default=1.0, help="cylinder radius (default: 1)")
+    p.add_argument("--repeats", type=int, default=None, metavar="R", help="timed passes (default: 3)")
+    p.add_argument("--no-fcl", dest="fcl", action="store_false", help="skip python-fcl (its rows stay, as NaN)")
+    _add_output_options(p)
+    p.set_defaults(func=_workprec)
+
+
+def _reproduce_parser(sub):
+    """The ``reproduce`` subcommand's options."""
+    p = sub.add_parser(
+        "reproduce",
+        help="run validation, timing study, work-precision and experiment; one report",
+        description="Run a short Monte Carlo validation (with the stiff suite), the timing study "
+        "against python-fcl and coal, the work-precision study and the paper's experiment, "
+        "and write everything into one folder: figures (PNG, SVG), CSV tables, JSON "
+        "metadata (versions, CPU, threads, seeds) and report.md. Needs "
+        "'prismbatch[reproduce]'. notebooks/reproduce.ipynb redraws the figures from the CSVs.",
+    )
+    p.add_argument("--quick", action="store_true", help="smaller runs of every part (a few minutes on 2 cores)")
+    p.add_argument("--out", default="reproduce-output", metavar="DIR", help="output folder (default: reproduce-output)")
+    p.add_argument(
+        "--parts",
+        type=_name_list,
+        default=None,
+        metavar="PART,...",
+        help="only these parts: validation, study, workprec, experiment (default: all)",
+    )
+    p.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bars")
+    p.set_defaults(func=_reproduce)
+
+
+def _replay_parser(sub):
+    """The ``replay`` subcommand's options."""
+    p = sub.add_parser(
+        "replay",
+        help="re-run saved pose pairs and print how each is decided, step by step",
+        description="Re-run the pose pairs of a replay file (e.g. validation_replay.json written by "
+        "'prismbatch validate') and print, for each, b's pose in a's frame, the case "
+        "classification, every test on the way and where the decision was made.",
+    )
+    p.add_argument("file", help="replay file (JSON)")
+    p.add_argument(
+        "--record",
+        type=int,
+        action="append",
+        default=None,
+        metavar="I",
+        help="only record I (0-based; repeat for several)",
+    )
+    p.set_defaults(func=_replay)
 
 
 def main(argv=None):

@@ -128,12 +128,12 @@ class Collider:
         for per, s, nm in ((self._a_per, set_a, "shape_a"), (self._b_per, set_b, "shape_b")):
             if per:
                 if self._n_shapes is not None and self._n_shapes != len(s):
-                    raise ValueError(f"shape_a and shape_b are PrismSets of different sizes "
-                                     f"({self._n_shapes} and {len(s)})")
+                    raise ValueError(
+                        f"shape_a and shape_b are PrismSets of different sizes ({self._n_shapes} and {len(s)})"
+                    )
                 self._n_shapes = len(s)
 
-    def collide(self, pos_a, rot_a=None, pos_b=None, rot_b=None, *, contact=False, quat_order=None,
-                parallel=None):
+    def collide(self, pos_a, rot_a=None, pos_b=None, rot_b=None, *, contact=False, quat_order=None, parallel=None):
         """Test the pose pairs; see :func:`collide` for the arguments."""
         if pos_b is None:
             raise TypeError("collide needs a pose for b: pos_b (and rot_b, or a 4x4 transform as pos_b)")
@@ -143,17 +143,30 @@ class Collider:
         if self._is_single_pair(pos_a, rot_a, pos_b, rot_b, quat_order):
             # One plain pair: the compiled one-pair path (same kernel, far less Python).
             r = self.collide_pair(pos_a, rot_a, pos_b, rot_b)
-            return CollisionResult(np.array([r.hit]), np.array([r.case], dtype=np.int8),
-                                   r.contact[None, :].astype(self.dtype) if contact else None)
+            return CollisionResult(
+                np.array([r.hit]),
+                np.array([r.case], dtype=np.int8),
+                r.contact[None, :].astype(self.dtype) if contact else None,
+            )
         pa, ra = as_pose(pos_a, rot_a, quat_order=quat_order, name="a", dtype=self.dtype)
         pb, rb = as_pose(pos_b, rot_b, quat_order=quat_order, name="b", dtype=self.dtype)
         n = common_batch_size(pa, ra, pb, rb, n_shapes=self._n_shapes)
         dt = self.dtype
         pa, pb = _kernel_array(pa, (-1, 3), dt), _kernel_array(pb, (-1, 3), dt)
         ra, rb = _kernel_array(ra, (-1, 3, 3), dt), _kernel_array(rb, (-1, 3, 3), dt)
-        hit, case, cont = _batch.run(self._a, self._b, pa, ra, pb, rb, n,
-                                     self.rtol, self.atol, bool(contact),
-                                     None if parallel is None else bool(parallel))
+        hit, case, cont = _batch.run(
+            self._a,
+            self._b,
+            pa,
+            ra,
+            pb,
+            rb,
+            n,
+            self.rtol,
+            self.atol,
+            bool(contact),
+            None if parallel is None else bool(parallel),
+        )
         return CollisionResult(hit, case, cont if contact else None)
 
     def collide_pair(self, pos_a, rot_a, pos_b, rot_b):
@@ -177,10 +190,16 @@ class Collider:
         if self._a_per or self._b_per:
             raise TypeError("collide_pair needs single Prism shapes, not PrismSets")
         f = self._pair_array
-        Pa, Ra, Pb, Rb = f(pos_a, (3,), "pos_a"), f(rot_a, (3, 3), "rot_a"), f(pos_b, (3,), "pos_b"), f(rot_b, (3, 3), "rot_b")
+        Pa, Ra, Pb, Rb = (
+            f(pos_a, (3,), "pos_a"),
+            f(rot_a, (3, 3), "rot_a"),
+            f(pos_b, (3,), "pos_b"),
+            f(rot_b, (3, 3), "rot_b"),
+        )
         ta, tb = self._ortho_tol(rot_a), self._ortho_tol(rot_b)
         problem, val, hit, case, cx, cy, cz = _batch.collide_pair(
-            *self._shape_args, Pa, Ra, Pb, Rb, self.rtol, self.atol, self._eps, ta, tb, self._max_magnitude)
+            *self._shape_args, Pa, Ra, Pb, Rb, self.rtol, self.atol, self._eps, ta, tb, self._max_magnitude
+        )
         if problem:
             raise ValueError(_pair_problem(problem, val, ta if problem <= 4 else tb, self._max_magnitude))
         return PairResult(bool(hit), int(case), np.array([cx, cy, cz]))
@@ -205,11 +224,17 @@ class Collider:
             raise TypeError("explain needs single Prism shapes, not PrismSets")
         self.collide_pair(pos_a, rot_a, pos_b, rot_b)  # the same input checks
         f = self._pair_array
-        Pa, Ra, Pb, Rb = f(pos_a, (3,), "pos_a"), f(rot_a, (3, 3), "rot_a"), f(pos_b, (3,), "pos_b"), f(rot_b, (3, 3), "rot_b")
+        Pa, Ra, Pb, Rb = (
+            f(pos_a, (3,), "pos_a"),
+            f(rot_a, (3, 3), "rot_a"),
+            f(pos_b, (3,), "pos_b"),
+            f(rot_b, (3, 3), "rot_b"),
+        )
         trace = np.full(TRACE_SIZE, np.nan)
         a, b = self._a, self._b
-        hit, case, cx, cy, cz = _batch.pair_world(*_batch.all_fields(a), 0, *_batch.pair_fields(b), 0, Pa, Ra, Pb, Rb,
-                                                  self.rtol, self.atol, self._eps, trace)
+        hit, case, cx, cy, cz = _batch.pair_world(
+            *_batch.all_fields(a), 0, *_batch.pair_fields(b), 0, Pa, Ra, Pb, Rb, self.rtol, self.atol, self._eps, trace
+        )
         out = {name: float(v) for name, v in zip(TRACE_FIELDS, trace)}
         out["exit"] = int(trace[TRACE_FIELDS.index("exit")])
         out["exit_reason"] = EXITS[out["exit"]]
@@ -240,8 +265,10 @@ class Collider:
             if a.dtype.kind not in "iuf":
                 raise TypeError(f"{name} must have a real numeric dtype, got {a.dtype}")
             if a.shape != shape:
-                raise ValueError(f"{name} has shape {a.shape}; collide_pair takes {shape} (use collide for "
-                                 f"batches, quaternions or transforms)")
+                raise ValueError(
+                    f"{name} has shape {a.shape}; collide_pair takes {shape} (use collide for "
+                    f"batches, quaternions or transforms)"
+                )
             a = _kernel_array(a, shape, self.dtype)
         return a
 
@@ -269,8 +296,9 @@ def _pair_problem(code, val, ortho_tol, max_magnitude):
     if kind == 0:
         if not np.isfinite(val):
             return f"{name} contains non-finite values (NaN or inf)"
-        return (f"{name} has a coordinate {val:g} outside the supported range |x| <= {max_magnitude:g}; "
-                f"rescale the units")
+        return (
+            f"{name} has a coordinate {val:g} outside the supported range |x| <= {max_magnitude:g}; rescale the units"
+        )
     if kind == 1:
         return f"{name} contains non-finite values (NaN or inf)"
     if kind == 2:
@@ -286,8 +314,21 @@ class PairResult(NamedTuple):
     contact: np.ndarray
 
 
-def collide(shape_a, shape_b, pos_a, rot_a=None, pos_b=None, rot_b=None, *, contact=False,
-            quat_order=None, rtol=None, atol=0.0, dtype=np.float64, parallel=None):
+def collide(
+    shape_a,
+    shape_b,
+    pos_a,
+    rot_a=None,
+    pos_b=None,
+    rot_b=None,
+    *,
+    contact=False,
+    quat_order=None,
+    rtol=None,
+    atol=0.0,
+    dtype=np.float64,
+    parallel=None,
+):
     """Collision status of two convex semi-infinite prisms for a batch of poses.
 
     Parameters
@@ -342,5 +383,4 @@ def collide(shape_a, shape_b, pos_a, rot_a=None, pos_b=None, rot_b=None, *, cont
     ([False, True], [1, 4])
     """
     col = Collider(shape_a, shape_b, rtol=rtol, atol=atol, dtype=dtype)
-    return col.collide(pos_a, rot_a, pos_b, rot_b, contact=contact, quat_order=quat_order,
-                       parallel=parallel)
+    return col.collide(pos_a, rot_a, pos_b, rot_b, contact=contact, quat_order=quat_order, parallel=parallel)

@@ -35,6 +35,12 @@ MAX_RTOL = 1.0
 #: once the kernels' tables are built).
 MAX_VERTICES = 10_000_000
 
+#: The lab's LP reference (:func:`prismbatch.lab.exact.margin_lp`) is trusted
+#: to about this fraction of the scene size S; a pair whose LP margin lies
+#: within ``max(tol, LP_TRUST_RTOL * S)`` of zero is in the touching band,
+#: where only the exact reference decides (:func:`prismbatch.lab.exact.lp_trust_band`).
+LP_TRUST_RTOL = 1e-7
+
 #: (smallest radius, largest magnitude) by compute dtype name.
 SUPPORTED_RANGE = {"float64": (MIN_RADIUS, MAX_MAGNITUDE), "float32": (MIN_RADIUS_F32, MAX_MAGNITUDE_F32)}
 

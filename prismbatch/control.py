@@ -32,7 +32,7 @@ import numpy as np
 from ._kernels.batch import use_parallel
 from ._kernels.detach import detach_parallel, detach_serial
 from .config import NOT_A_CONTACT_RTOL
-from .poses import _as_real_array, _where, as_pose, as_rotations, common_batch_size, real_scalar
+from .poses import as_pose, as_real_array, as_rotations, common_batch_size, indexed_name, real_scalar
 from .shapes import as_prism_set
 
 __all__ = ["detach", "DetachResult", "CONTACT_CLASSES"]
@@ -56,13 +56,13 @@ def _first_bad(ok):
 
 def _check_tol(tol, n):
     """``tol`` as a (1,) or (n,) float64 array: a real scalar or one per pair, finite and >= 0."""
-    arr = _as_real_array(tol, "tol")
+    arr = as_real_array(tol, "tol")
     if arr.ndim > 1 or (arr.ndim == 1 and arr.shape[0] not in (1, n)):
         raise ValueError(f"tol must be a scalar or have shape ({n},) (one per pair), got shape {arr.shape}")
     t = np.atleast_1d(arr.astype(np.float64))
     i = _first_bad(np.isfinite(t) & (t >= 0.0))
     if i is not None:
-        raise ValueError(f"{_where('tol', i if arr.ndim else None)} must be finite and >= 0, got {t[i]}")
+        raise ValueError(f"{indexed_name('tol', i if arr.ndim else None)} must be finite and >= 0, got {t[i]}")
     return t
 
 
@@ -72,8 +72,10 @@ def _force(eps, errn, direction):
         mag = eps * np.broadcast_to(errn, direction.shape[:1])
     i = _first_bad(np.isfinite(mag) | np.isnan(direction[:, 0]))  # no contact: NaN force anyway
     if i is not None:
-        raise ValueError(f"eps = {eps:g} gives pair {i} a non-finite force (eps * |state_error| = {mag[i]:g}); "
-                         f"eps times the state error's norm must be finite: lower eps or rescale the state error")
+        raise ValueError(
+            f"eps = {eps:g} gives pair {i} a non-finite force (eps * |state_error| = {mag[i]:g}); "
+            f"eps times the state error's norm must be finite: lower eps or rescale the state error"
+        )
     return mag[:, None] * direction  # NaN where there is no contact, as the direction
 
 
@@ -99,8 +101,7 @@ class DetachResult:
     depth: np.ndarray
 
 
-def detach(shape_a, contact, pos_a, rot_a, rot_b, state_error, *, eps=10.0, tol=None, quat_order=None,
-           parallel=None):
+def detach(shape_a, contact, pos_a, rot_a, rot_b, state_error, *, eps=10.0, tol=None, quat_order=None, parallel=None):
     """Detach direction and force for contacts on prism a (eqs. 42-46).
 
     Parameters
@@ -150,7 +151,7 @@ def detach(shape_a, contact, pos_a, rot_a, rot_b, state_error, *, eps=10.0, tol=
     set_a, per = as_prism_set(shape_a, "shape_a")
     pa, ra = as_pose(pos_a, rot_a, quat_order=quat_order, name="a")
     rb = as_rotations(rot_b, quat_order=quat_order, name="rot_b")
-    c = _as_real_array(contact, "contact").astype(np.float64)
+    c = as_real_array(contact, "contact").astype(np.float64)
     if c.ndim == 1:
         c = c[None, :]
     if c.ndim != 2 or c.shape[1] != 3:
@@ -159,7 +160,7 @@ def detach(shape_a, contact, pos_a, rot_a, rot_b, state_error, *, eps=10.0, tol=
     i = _first_bad(~(np.isinf(c).any(axis=1) | (nan_rows & ~np.isnan(c).all(axis=1))))
     if i is not None:
         raise ValueError(f"contact[{i}] = {c[i].tolist()}: a contact is finite, or all NaN for no contact")
-    err = _as_real_array(state_error, "state_error").astype(np.float64)
+    err = as_real_array(state_error, "state_error").astype(np.float64)
     if not np.all(np.isfinite(err)):
         raise ValueError("state_error contains NaN or inf")
     if err.ndim == 1 and len(c) == 1:
@@ -170,12 +171,12 @@ def detach(shape_a, contact, pos_a, rot_a, rot_b, state_error, *, eps=10.0, tol=
     if n == 1:
         n = len(c)  # the contacts set the batch when every pose is single
     if len(c) not in (1, n) or len(errn) not in (1, n):
-        raise ValueError(f"batch sizes do not match: contact has {len(c)} rows, state_error {len(errn)}, "
-                         f"poses and shapes {n}")
+        raise ValueError(
+            f"batch sizes do not match: contact has {len(c)} rows, state_error {len(errn)}, poses and shapes {n}"
+        )
     eps = real_scalar(eps, "eps", 0.0)
     if tol is None:
-        tol_arr = 1e-9 * set_a.radius + 16 * np.finfo(np.float64).eps * (
-            set_a.radius + np.abs(pa).max(initial=0.0))
+        tol_arr = 1e-9 * set_a.radius + 16 * np.finfo(np.float64).eps * (set_a.radius + np.abs(pa).max(initial=0.0))
     else:
         tol_arr = _check_tol(tol, n)
     cls = np.empty(n, dtype=np.int8)
@@ -185,14 +186,29 @@ def detach(shape_a, contact, pos_a, rot_a, rot_b, state_error, *, eps=10.0, tol=
     if parallel is not None and not isinstance(parallel, (bool, np.bool_)):
         raise TypeError(f"parallel must be True, False or None, got {parallel!r}")
     kern = detach_parallel if use_parallel(parallel, n) else detach_serial
-    kern(set_a.vx, set_a.vy, set_a.vertex_angle, set_a.inv_edge_len, set_a.offsets, set_a.radius, set_a.centre,
-                   np.ascontiguousarray(pa.reshape(-1, 3)), np.ascontiguousarray(ra.reshape(-1, 3, 3)),
-                   np.ascontiguousarray(rb.reshape(-1, 3, 3)), cc, np.ascontiguousarray(tol_arr), cls, direction,
-                   depth)
+    kern(
+        set_a.vx,
+        set_a.vy,
+        set_a.vertex_angle,
+        set_a.inv_edge_len,
+        set_a.offsets,
+        set_a.radius,
+        set_a.centre,
+        np.ascontiguousarray(pa.reshape(-1, 3)),
+        np.ascontiguousarray(ra.reshape(-1, 3, 3)),
+        np.ascontiguousarray(rb.reshape(-1, 3, 3)),
+        cc,
+        np.ascontiguousarray(tol_arr),
+        cls,
+        direction,
+        depth,
+    )
     i = _first_bad(cls >= 0)
     if i is not None:
-        raise ValueError(f"contact[{i}] = {cc[i].tolist()} lies outside a by more than tol + "
-                         f"{NOT_A_CONTACT_RTOL:g} x a's radius: not a contact point of a (pass "
-                         f"collide(..., contact=True).contact)")
+        raise ValueError(
+            f"contact[{i}] = {cc[i].tolist()} lies outside a by more than tol + "
+            f"{NOT_A_CONTACT_RTOL:g} x a's radius: not a contact point of a (pass "
+            f"collide(..., contact=True).contact)"
+        )
     force = _force(eps, errn, direction)
     return DetachResult(cls, direction, force, depth)

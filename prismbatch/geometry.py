@@ -9,8 +9,16 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["AXIS_DOWN", "signed_area", "ccw", "max_radius", "centroid_radius", "rotation_with_axis",
-           "halfplanes", "point_in_prism_residual"]
+__all__ = [
+    "AXIS_DOWN",
+    "signed_area",
+    "ccw",
+    "max_radius",
+    "centroid_radius",
+    "rotation_with_axis",
+    "halfplanes",
+    "point_in_prism_residual",
+]
 
 #: a's orientation in the paper's scene: local axes x, -y, -z (axis d_a = [0, 0, -1], body below).
 AXIS_DOWN = np.diag([1.0, -1.0, -1.0])
@@ -105,6 +113,7 @@ def point_in_prism_residual(xy, pos, rot, x) -> float:
     exact when a single face is violated).
     """
     local = np.asarray(rot, dtype=float).reshape(3, 3).T @ (
-        np.asarray(x, dtype=float).reshape(3) - np.asarray(pos, dtype=float).reshape(3))
+        np.asarray(x, dtype=float).reshape(3) - np.asarray(pos, dtype=float).reshape(3)
+    )
     n, h = halfplanes(xy)
     return float(max(-local[2], np.max(n @ local[:2] - h)))

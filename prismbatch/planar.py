@@ -52,7 +52,9 @@ def _run(prism, pset, pts, w, tol, poly_b=None):
         geang = np.empty(len(g))
         getab = np.empty(len(g), dtype=np.int64)
         ge = np.roll(g, -1, axis=0) - g
-        edge_search_tables(np.ascontiguousarray(ge[:, 0]), np.ascontiguousarray(ge[:, 1]), geang, getab)  # 1 or 2 points
+        edge_search_tables(
+            np.ascontiguousarray(ge[:, 0]), np.ascontiguousarray(ge[:, 1]), geang, getab
+        )  # 1 or 2 points
         reach_pts = g
     wx, wy, T = 0.0, 0.0, 0.0
     if w is not None:
@@ -62,8 +64,22 @@ def _run(prism, pset, pts, w, tol, poly_b=None):
         wx, wy = w[0] / wn, w[1] / wn
         # Beyond this length the shape is farther than the polygon's reach.
         T = float(np.max(np.hypot(reach_pts[:, 0], reach_pts[:, 1]))) + pset.radius[0] + 2 * tol + 1.0
-    hit, _, ax, ay, u, v, t = gjk_generators(pset.vx, pset.vy, pset.edge_angle, pset.edge_table, len(pset.vx),
-                                              gx, gy, geang, getab, len(gx), wx, wy, T, float(tol))
+    hit, _, ax, ay, u, v, t = gjk_generators(
+        pset.vx,
+        pset.vy,
+        pset.edge_angle,
+        pset.edge_table,
+        len(pset.vx),
+        gx,
+        gy,
+        geang,
+        getab,
+        len(gx),
+        wx,
+        wy,
+        T,
+        float(tol),
+    )
     if not hit:
         return False, np.full(2, np.nan)
     bx, by = u + wx * t, v + wy * t

@@ -61,7 +61,7 @@ _OUT_DTYPES = (np.dtype(np.float64), np.dtype(np.float32))
 # ---------------------------------------------------------------------------
 # small helpers
 # ---------------------------------------------------------------------------
-def _where(name: str, i: int | None) -> str:
+def indexed_name(name: str, i: int | None) -> str:
     """``name`` for a single item, ``name[i]`` for an item of a batch."""
     return name if i is None else f"{name}[{i}]"
 
@@ -70,15 +70,13 @@ def _out_dtype(dtype) -> np.dtype:
     try:
         dt = np.dtype(dtype)
     except TypeError as exc:
-        raise TypeError(
-            f"dtype must be np.float64 or np.float32, got {dtype!r}"
-        ) from exc
+        raise TypeError(f"dtype must be np.float64 or np.float32, got {dtype!r}") from exc
     if dt not in _OUT_DTYPES:
         raise TypeError(f"dtype must be np.float64 or np.float32, got {dt}")
     return dt
 
 
-def _as_real_array(x, name: str) -> np.ndarray:
+def as_real_array(x, name: str) -> np.ndarray:
     """``np.asarray`` that rejects non-real-numeric data with a named error."""
     try:
         arr = np.asarray(x)
@@ -88,10 +86,7 @@ def _as_real_array(x, name: str) -> np.ndarray:
     # Only signed/unsigned integers and floats.  bool is excluded on purpose:
     # a boolean "rotation" is almost certainly a mask passed by mistake.
     if arr.dtype.kind not in "iuf":
-        raise TypeError(
-            f"{name} must have a real numeric dtype (integer or float), "
-            f"got dtype {arr.dtype}"
-        )
+        raise TypeError(f"{name} must have a real numeric dtype (integer or float), got dtype {arr.dtype}")
     return arr
 
 
@@ -157,9 +152,7 @@ def _check_finite(a64: np.ndarray, name: str, batched: bool, what: str = "") -> 
         bad = ~np.isfinite(a64.reshape(a64.shape[0], -1) if a64.size else a64.reshape(0, 1)).all(axis=1)
         if bad.any():
             i = int(np.flatnonzero(bad)[0])
-            raise ValueError(
-                f"{_where(name, i)}{what} contains non-finite values (NaN or inf)"
-            )
+            raise ValueError(f"{indexed_name(name, i)}{what} contains non-finite values (NaN or inf)")
     elif not np.isfinite(a64).all():
         raise ValueError(f"{name}{what} contains non-finite values (NaN or inf)")
 
@@ -177,16 +170,16 @@ def _check_positions(p64: np.ndarray, name: str, batched: bool, what: str = "", 
     rows = ok.reshape(p64.shape[0], -1).all(axis=1) if batched else ok.reshape(1, -1).all(axis=1)
     i = int(np.flatnonzero(~rows)[0])
     v = float(np.ravel(p64[i] if batched else p64)[np.flatnonzero(~np.ravel(ok[i] if batched else ok))[0]])
-    where = _where(name, i if batched else None) + what
+    where = indexed_name(name, i if batched else None) + what
     if not math.isfinite(v):
         raise ValueError(f"{where} contains non-finite values (NaN or inf)")
-    raise ValueError(f"{where} has a coordinate {v:g} outside the supported range |x| <= {limit:g}"
-                     f"{' for float32' if limit != SUPPORTED_RANGE['float64'][1] else ''}; rescale the units")
+    raise ValueError(
+        f"{where} has a coordinate {v:g} outside the supported range |x| <= {limit:g}"
+        f"{' for float32' if limit != SUPPORTED_RANGE['float64'][1] else ''}; rescale the units"
+    )
 
 
-def _check_rotation_matrices(
-    R64: np.ndarray, name: str, tol: float, batched: bool, what: str = ""
-) -> None:
+def _check_rotation_matrices(R64: np.ndarray, name: str, tol: float, batched: bool, what: str = "") -> None:
     """Finite, orthonormal within ``tol``, and proper (det > 0).
 
     ``R64`` is float64 of shape (N, 3, 3) if ``batched`` else (3, 3).
@@ -195,13 +188,11 @@ def _check_rotation_matrices(
     if Rb.shape[0] == 0:
         return
     i, kind, val = first_bad_rotation(Rb, tol)
-    where = _where(name, int(i) if batched else None)
+    where = indexed_name(name, int(i) if batched else None)
     if kind == 1:
         raise ValueError(f"{where}{what} contains non-finite values (NaN or inf)")
     if kind == 2:
-        raise ValueError(
-            f"{where}{what} is not orthonormal: max |R^T R - I| = {val:.3e} > {tol:.3g}; {ORTHO_HINT}"
-        )
+        raise ValueError(f"{where}{what} is not orthonormal: max |R^T R - I| = {val:.3e} > {tol:.3g}; {ORTHO_HINT}")
     if kind == 3:
         raise ValueError(f"{where}{what} is a reflection (det = {val:.6g}); a rotation must have det = +1")
 
@@ -232,14 +223,11 @@ def _quat_to_matrix(q64: np.ndarray, order: str) -> np.ndarray:
 
 def _is_scipy_rotation(obj) -> bool:
     # Duck typing so that scipy stays an optional, lazily used dependency.
-    return hasattr(obj, "as_matrix") and hasattr(obj, "as_quat") and not isinstance(
-        obj, np.ndarray
-    )
+    return hasattr(obj, "as_matrix") and hasattr(obj, "as_quat") and not isinstance(obj, np.ndarray)
 
 
 _ROT_SHAPES = (
-    "(3, 3) or (N, 3, 3) rotation matrices, a scipy Rotation, "
-    "or (4,) / (N, 4) quaternions together with quat_order"
+    "(3, 3) or (N, 3, 3) rotation matrices, a scipy Rotation, or (4,) / (N, 4) quaternions together with quat_order"
 )
 
 
@@ -291,10 +279,7 @@ def as_rotations(rot, *, quat_order=None, name="rot", dtype=np.float64) -> np.nd
     """
     out_dt = _out_dtype(dtype)
     if quat_order is not None and quat_order not in _QUAT_ORDERS:
-        raise ValueError(
-            f"quat_order must be 'wxyz' (scalar-first) or 'xyzw' (scalar-last), "
-            f"got {quat_order!r}"
-        )
+        raise ValueError(f"quat_order must be 'wxyz' (scalar-first) or 'xyzw' (scalar-last), got {quat_order!r}")
 
     if _is_scipy_rotation(rot):
         R64 = np.asarray(rot.as_matrix(), dtype=np.float64)
@@ -305,14 +290,13 @@ def as_rotations(rot, *, quat_order=None, name="rot", dtype=np.float64) -> np.nd
         _check_rotation_matrices(R64, name, ortho_tolerance(np.float64, out_dt), batched)
         return np.ascontiguousarray(R64, dtype=out_dt)
 
-    arr = _as_real_array(rot, name)
+    arr = as_real_array(rot, name)
     shape = arr.shape
 
     if arr.ndim in (1, 2) and shape[-1] == 4:
         if quat_order is None:
             hint = (
-                " (a (4, 4) homogeneous transform must be passed as the pose "
-                "itself with rot=None, not as a rotation)"
+                " (a (4, 4) homogeneous transform must be passed as the pose itself with rot=None, not as a rotation)"
                 if shape == (4, 4)
                 else ""
             )
@@ -328,7 +312,7 @@ def as_rotations(rot, *, quat_order=None, name="rot", dtype=np.float64) -> np.nd
         if bad.any():
             i = int(np.flatnonzero(bad)[0])
             raise ValueError(
-                f"{_where(name, i if batched else None)} is a quaternion of norm "
+                f"{indexed_name(name, i if batched else None)} is a quaternion of norm "
                 f"{norm[i]:.9g}; expected 1 within {QUAT_NORM_TOL:.0e} "
                 f"(quaternions are not normalised automatically)"
             )
@@ -342,10 +326,7 @@ def as_rotations(rot, *, quat_order=None, name="rot", dtype=np.float64) -> np.nd
     if arr.ndim not in (2, 3) or shape[-2:] != (3, 3):
         hint = ""
         if arr.ndim == 3 and shape[-2:] == (4, 4):
-            hint = (
-                " ((N, 4, 4) homogeneous transforms must be passed as the pose "
-                "with rot=None)"
-            )
+            hint = " ((N, 4, 4) homogeneous transforms must be passed as the pose with rot=None)"
         raise ValueError(f"{name} has shape {shape}; expected {_ROT_SHAPES}{hint}")
 
     batched = arr.ndim == 3
@@ -382,7 +363,7 @@ def as_positions(pos, *, name="pos", dtype=np.float64) -> np.ndarray:
         ``name`` and the index of the first bad position).
     """
     out_dt = _out_dtype(dtype)
-    arr = _as_real_array(pos, name)
+    arr = as_real_array(pos, name)
     if arr.ndim not in (1, 2) or arr.shape[-1] != 3:
         raise ValueError(f"{name} has shape {arr.shape}; expected (3,) or (N, 3)")
     p64 = np.asarray(arr, dtype=np.float64)
@@ -438,7 +419,7 @@ def as_pose(pos, rot=None, *, quat_order=None, name="a", dtype=np.float64):
 
     out_dt = _out_dtype(dtype)
     tname = "pose_" + name
-    arr = _as_real_array(pos, tname)
+    arr = as_real_array(pos, tname)
     if arr.ndim not in (2, 3) or arr.shape[-2:] != (4, 4):
         raise ValueError(
             f"{tname} has shape {arr.shape}; with rot=None the pose must be "
@@ -456,13 +437,11 @@ def as_pose(pos, rot=None, *, quat_order=None, name="a", dtype=np.float64):
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
         raise ValueError(
-            f"{_where(tname, i if batched else None)} has last row "
+            f"{indexed_name(tname, i if batched else None)} has last row "
             f"{Tb[i, 3, :].tolist()}; a homogeneous transform needs [0, 0, 0, 1]"
         )
     R64 = T64[..., :3, :3]
-    _check_rotation_matrices(
-        R64, tname, ortho_tolerance(arr.dtype, out_dt), batched, what=" rotation block"
-    )
+    _check_rotation_matrices(R64, tname, ortho_tolerance(arr.dtype, out_dt), batched, what=" rotation block")
     p = np.ascontiguousarray(T64[..., :3, 3], dtype=out_dt)
     R = np.ascontiguousarray(R64, dtype=out_dt)
     return p, R
@@ -476,10 +455,7 @@ def _batch_size(a: np.ndarray, single_ndim: int, name: str) -> int | None:
         return None
     if a.ndim == single_ndim + 1 and a.shape[1:] == core:
         return a.shape[0]
-    raise ValueError(
-        f"{name} has shape {a.shape}; expected {core} or "
-        f"(N, {', '.join(map(str, core))})"
-    )
+    raise ValueError(f"{name} has shape {a.shape}; expected {core} or (N, {', '.join(map(str, core))})")
 
 
 def common_batch_size(pos_a, rot_a, pos_b, rot_b, *, n_shapes=None):

@@ -10,9 +10,16 @@ import numpy as np
 
 from .geometry import AXIS_DOWN, rotation_with_axis
 
-__all__ = ["random_rotations", "spins_about_z", "rotation_with_axis", "tilted_up", "facing_poses", "free_poses",
-           "DISTRIBUTIONS", "AXIS_DOWN"]
-
+__all__ = [
+    "random_rotations",
+    "spins_about_z",
+    "rotation_with_axis",
+    "tilted_up",
+    "facing_poses",
+    "free_poses",
+    "DISTRIBUTIONS",
+    "AXIS_DOWN",
+]
 
 
 def random_rotations(n, rng):
@@ -76,8 +83,9 @@ def facing_poses(n, rng, *, radius=2.5, max_tilt=np.radians(15.0)):
     """
     pos_a = np.zeros((n, 3))
     rot_a = np.broadcast_to(AXIS_DOWN, (n, 3, 3)).copy()
-    pos_b = np.column_stack([rng.uniform(-2.4 * radius, 2.4 * radius, (n, 2)),
-                             rng.uniform(-0.6 * radius, 1.2 * radius, n)])
+    pos_b = np.column_stack(
+        [rng.uniform(-2.4 * radius, 2.4 * radius, (n, 2)), rng.uniform(-0.6 * radius, 1.2 * radius, n)]
+    )
     return pos_a, rot_a, pos_b, tilted_up(n, max_tilt, rng)
 
 

@@ -84,14 +84,18 @@ def validate_polygon(xy, *, name="polygon"):
         k = int(np.argmax(short))
         if elen[k] == 0.0:
             raise ValueError(f"{name}: vertex {(k + 1) % n} repeats vertex {k} (zero-length edge)")
-        raise ValueError(f"{name}: edge {k} is {elen[k]:.3g} of the polygon's size, below the supported "
-                         f"{MIN_RELATIVE_EDGE:g}: merge vertices {k} and {(k + 1) % n}")
+        raise ValueError(
+            f"{name}: edge {k} is {elen[k]:.3g} of the polygon's size, below the supported "
+            f"{MIN_RELATIVE_EDGE:g}: merge vertices {k} and {(k + 1) % n}"
+        )
     area2 = float(np.sum(rel[:, 0] * np.roll(rel[:, 1], -1) - np.roll(rel[:, 0], -1) * rel[:, 1]))
     if abs(area2) <= MIN_RELATIVE_AREA:
         if _exact_area2(arr) == 0:
             raise ValueError(f"{name}: polygon has zero area (collinear vertices)")
-        raise ValueError(f"{name}: polygon is too thin: its area is about {abs(area2) / 2:.3g} of its size "
-                         f"squared, below the supported {MIN_RELATIVE_AREA / 2:g}")
+        raise ValueError(
+            f"{name}: polygon is too thin: its area is about {abs(area2) / 2:.3g} of its size "
+            f"squared, below the supported {MIN_RELATIVE_AREA / 2:g}"
+        )
     if area2 < 0.0:
         arr = np.ascontiguousarray(arr[::-1])
         edges = -np.roll(edges[::-1], -1, axis=0)
@@ -306,8 +310,17 @@ class PrismSet:
         self.inv_edge_len = np.concatenate([q[4] for q in parts])
         self.radius = np.array([q[5] for q in parts])
         self.centre = np.array([p.centre for p in prisms]).reshape(-1, 2)
-        for arr in (self.offsets, self.vx, self.vy, self.edge_angle, self.edge_table, self.vertex_angle,
-                    self.inv_edge_len, self.radius, self.centre):
+        for arr in (
+            self.offsets,
+            self.vx,
+            self.vy,
+            self.edge_angle,
+            self.edge_table,
+            self.vertex_angle,
+            self.inv_edge_len,
+            self.radius,
+            self.centre,
+        ):
             arr.flags.writeable = False
 
     def __len__(self):
@@ -323,8 +336,17 @@ class PrismSet:
     def kernel_arrays(self, dtype=np.float64):
         """The arrays the kernels read, cast once to ``dtype``, as a :class:`PrismArrays`."""
         f = lambda a: np.ascontiguousarray(a, dtype=dtype)  # noqa: E731
-        return PrismArrays(f(self.vx), f(self.vy), f(self.edge_angle), self.edge_table, f(self.vertex_angle),
-                           f(self.inv_edge_len), self.offsets, f(self.radius), f(self.centre))
+        return PrismArrays(
+            f(self.vx),
+            f(self.vy),
+            f(self.edge_angle),
+            self.edge_table,
+            f(self.vertex_angle),
+            f(self.inv_edge_len),
+            self.offsets,
+            f(self.radius),
+            f(self.centre),
+        )
 
 
 class PrismArrays(NamedTuple):

@@ -316,8 +316,9 @@ def pair_tolerance(polys_a, pos_a, rot_a, polys_b, pos_b, rot_b, *, rtol=1e-9, a
 
 def margins(polys_a, pos_a, rot_a, polys_b, pos_b, rot_b):
     """LP margins delta* (N,) for per-pair polygons."""
-    return np.array([margin_lp(polys_a[k], pos_a[k], rot_a[k], polys_b[k], pos_b[k], rot_b[k])
-                     for k in range(len(polys_a))])
+    return np.array(
+        [margin_lp(polys_a[k], pos_a[k], rot_a[k], polys_b[k], pos_b[k], rot_b[k]) for k in range(len(polys_a))]
+    )
 
 
 @dataclass
@@ -342,9 +343,17 @@ class PairData:
         if idx.dtype == bool:
             idx = np.flatnonzero(idx)
         pick = lambda v: None if v is None else v[idx]  # noqa: E731
-        return PairData([self.polys_a[i] for i in idx], [self.polys_b[i] for i in idx],
-                        self.pos_a[idx], self.rot_a[idx], self.pos_b[idx], self.rot_b[idx],
-                        pick(self.kind), pick(self.delta), pick(self.scale))
+        return PairData(
+            [self.polys_a[i] for i in idx],
+            [self.polys_b[i] for i in idx],
+            self.pos_a[idx],
+            self.rot_a[idx],
+            self.pos_b[idx],
+            self.rot_b[idx],
+            pick(self.kind),
+            pick(self.delta),
+            pick(self.scale),
+        )
 
     def args(self):
         return self.pos_a, self.rot_a, self.pos_b, self.rot_b
@@ -371,8 +380,17 @@ def make_pairs(rng, n_pairs, pose_set, family="mixed", *, regular=None, with_mar
 
 def concat_pairs(*parts):
     cat = lambda name: np.concatenate([getattr(p, name) for p in parts])  # noqa: E731
-    out = PairData(sum((p.polys_a for p in parts), []), sum((p.polys_b for p in parts), []),
-                   cat("pos_a"), cat("rot_a"), cat("pos_b"), cat("rot_b"), cat("kind"), None, cat("scale"))
+    out = PairData(
+        sum((p.polys_a for p in parts), []),
+        sum((p.polys_b for p in parts), []),
+        cat("pos_a"),
+        cat("rot_a"),
+        cat("pos_b"),
+        cat("rot_b"),
+        cat("kind"),
+        None,
+        cat("scale"),
+    )
     if all(p.delta is not None for p in parts):
         out.delta = cat("delta")
     return out
@@ -557,8 +575,10 @@ def pairs_with_margins():
     band) so the LP reference is run once per session.
     """
     rng = np.random.default_rng(20240611)
-    parts = [make_pairs(rng, 800, "facing", "smallmed", with_margin=True),
-             make_pairs(rng, 800, "free", "smallmed", with_margin=True)]
+    parts = [
+        make_pairs(rng, 800, "facing", "smallmed", with_margin=True),
+        make_pairs(rng, 800, "free", "smallmed", with_margin=True),
+    ]
     return concat_pairs(*parts)
 
 

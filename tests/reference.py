@@ -103,8 +103,7 @@ def _point_segment_distance(x, a, b) -> float:
 
 def _on_segment(a, b, x) -> bool:
     """x (known collinear with a-b) lies within the bounding box of a-b."""
-    return (min(a[0], b[0]) <= x[0] <= max(a[0], b[0])
-            and min(a[1], b[1]) <= x[1] <= max(a[1], b[1]))
+    return min(a[0], b[0]) <= x[0] <= max(a[0], b[0]) and min(a[1], b[1]) <= x[1] <= max(a[1], b[1])
 
 
 def _segments_intersect(a, b, c, d) -> bool:
@@ -165,16 +164,16 @@ def ref_polygon_distance(poly, other_points) -> float:
             if _inside_convex_ccw(B, v):
                 return 0.0
     edges_a, edges_b = _edges(A), _edges(B)
-    for (a0, a1) in edges_a:
-        for (b0, b1) in edges_b:
+    for a0, a1 in edges_a:
+        for b0, b1 in edges_b:
             if _segments_intersect(a0, a1, b0, b1):
                 return 0.0
     best = np.inf
     for v in A:
-        for (b0, b1) in edges_b:
+        for b0, b1 in edges_b:
             best = min(best, _point_segment_distance(v, b0, b1))
     for v in B:
-        for (a0, a1) in edges_a:
+        for a0, a1 in edges_a:
             best = min(best, _point_segment_distance(v, a0, a1))
     return float(best)
 

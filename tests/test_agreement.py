@@ -1,9 +1,9 @@
 """Agreement of ``prismbatch.collide`` with the independent LP reference.
 
-The issue asks for "agreement with an independent exact reference ... on at
-least 10,000 random pose pairs spanning facing and fully random orientations
-and polygons from 3 to 3600 vertices, regular and irregular: zero
-disagreements outside a documented touching band".
+Requirement: agreement with an independent exact reference on at least
+10,000 random pose pairs spanning facing and fully random orientations and
+polygons from 3 to 3600 vertices, regular and irregular, with zero
+disagreements outside a documented touching band.
 
 Reference: ``margin_lp`` (tests/reference.py) returns the signed margin
 delta* of the two bodies: delta* >= 0 iff they intersect, and a separated
@@ -45,6 +45,7 @@ import numpy as np
 import pytest
 
 import prismbatch as pb
+
 from conftest import (
     LARGE_COUNTS,
     PairData,
@@ -56,8 +57,8 @@ from conftest import (
     overlapping_pairs,
     pair_scale,
     perpendicular_pairs,
-    random_rotations,
     polygon_radius,
+    random_rotations,
     separating_directions,
     vertical_pairs,
 )
@@ -107,9 +108,11 @@ def check_agreement(delta, hit, scale, label, *, case=None, info=None, max_band_
     BAND_REPORT[label] = (n, int(in_band.sum()), int(missed.sum()), int(false.sum()))
     assert bad.size == 0, (
         f"{label}: {missed.sum()} missed collisions and {false.sum()} false hits among {n} pairs "
-        f"outside the band (band holds {in_band.sum()}):\n" + "\n".join(lines))
+        f"outside the band (band holds {in_band.sum()}):\n" + "\n".join(lines)
+    )
     assert in_band.sum() <= max(3, max_band_frac * n), (
-        f"{label}: {in_band.sum()} of {n} pairs fall in the touching band (expected few)")
+        f"{label}: {in_band.sum()} of {n} pairs fall in the touching band (expected few)"
+    )
     return int(in_band.sum())
 
 
@@ -143,9 +146,9 @@ def test_random_pairs_agree_with_lp(pose_set, family, n_pairs):
     r32 = collide_pairs(d, sets, dtype=np.float32)
     clear32 = np.abs(d.delta) > 1e-4 * d.scale
     bad32 = np.flatnonzero(clear32 & (r32.hit != (d.delta > 0)))
-    assert bad32.size == 0, (f"float32: {bad32.size} of {clear32.sum()} clear pairs misclassified, e.g. "
-                             + ", ".join(f"pair {k} ({nv(k)}, delta*/S={d.delta[k] / d.scale[k]:+.2e})"
-                                         for k in bad32[:6]))
+    assert bad32.size == 0, f"float32: {bad32.size} of {clear32.sum()} clear pairs misclassified, e.g. " + ", ".join(
+        f"pair {k} ({nv(k)}, delta*/S={d.delta[k] / d.scale[k]:+.2e})" for k in bad32[:6]
+    )
 
     # The chunk must exercise both outcomes, not just one.
     frac = r.hit.mean()
@@ -196,19 +199,27 @@ def test_near_contact_pairs_found_by_bisection():
             s = hi + sign * off
             pos_b = d.pos_b + s[:, None] * u
             r = pb.collide(sa, sb, d.pos_a, d.rot_a, pos_b, d.rot_b)
-            delta = np.array([margin_lp(d.polys_a[k], d.pos_a[k], d.rot_a[k], d.polys_b[k], pos_b[k],
-                                        d.rot_b[k]) for k in idx])
-            scale = pair_scale([d.polys_a[k] for k in idx], d.pos_a[idx], d.rot_a[idx],
-                               [d.polys_b[k] for k in idx], pos_b[idx], d.rot_b[idx])
-            check_agreement(delta, r.hit[idx], scale, f"near-contact/{rel:g}R/{name}", case=r.case[idx],
-                            max_band_frac=max_band)
+            delta = np.array(
+                [margin_lp(d.polys_a[k], d.pos_a[k], d.rot_a[k], d.polys_b[k], pos_b[k], d.rot_b[k]) for k in idx]
+            )
+            scale = pair_scale(
+                [d.polys_a[k] for k in idx],
+                d.pos_a[idx],
+                d.rot_a[idx],
+                [d.polys_b[k] for k in idx],
+                pos_b[idx],
+                d.rot_b[idx],
+            )
+            check_agreement(
+                delta, r.hit[idx], scale, f"near-contact/{rel:g}R/{name}", case=r.case[idx], max_band_frac=max_band
+            )
             results[name] = (delta, band_of(scale))
         din, bin_ = results["inside"]
         dout, bout = results["outside"]
         straddle = (din > bin_) & (dout < -bout)
         assert straddle.mean() >= min_straddle, (
-            f"offset {rel:g} R: only {straddle.sum()} of {len(idx)} bisection boundaries are real "
-            f"contact boundaries")
+            f"offset {rel:g} R: only {straddle.sum()} of {len(idx)} bisection boundaries are real contact boundaries"
+        )
 
 
 # ---------------------------------------------------------------------------
@@ -253,10 +264,12 @@ def test_perpendicular_axes(mode):
     assert touching.sum() >= 0.2 * n and (~touching).sum() >= 0.2 * n
     assert r.hit[touching].all(), (
         f"{(~r.hit[touching]).sum()} in-plane touching pairs (mode {mode}) reported as no hit: "
-        f"indices {np.flatnonzero(touching & ~r.hit)[:10]}")
+        f"indices {np.flatnonzero(touching & ~r.hit)[:10]}"
+    )
     # Everything else is decided by the LP outside the band.
-    check_agreement(np.where(touching, np.inf, d.delta), r.hit, d.scale, f"perpendicular/{mode}",
-                    case=r.case, max_band_frac=1.0)
+    check_agreement(
+        np.where(touching, np.inf, d.delta), r.hit, d.scale, f"perpendicular/{mode}", case=r.case, max_band_frac=1.0
+    )
     expected = 7 if mode == "vertex" else 8
     assert np.all(r.case == expected), f"case numbers {r.case_counts()} (expected all {expected})"
 
@@ -288,8 +301,14 @@ def test_vertex_or_edge_on_plane_with_tilted_axis(mode, depression_deg):
     missed = np.flatnonzero(touching & ~r.hit)
     assert missed.size == 0, f"{missed.size} pairs touching in a's plane reported as no hit: {missed[:10]}"
     delta = margins(d.polys_a, d.pos_a, d.rot_a, d.polys_b, d.pos_b, d.rot_b)
-    check_agreement(np.where(touching, np.inf, delta), r.hit, d.scale,
-                    f"plane-{mode}/{depression_deg:g}deg", case=r.case, max_band_frac=1.0)
+    check_agreement(
+        np.where(touching, np.inf, delta),
+        r.hit,
+        d.scale,
+        f"plane-{mode}/{depression_deg:g}deg",
+        case=r.case,
+        max_band_frac=1.0,
+    )
     expected = 2 if mode == "vertex" else 3
     assert np.all(r.case == expected), f"case numbers {r.case_counts()} (expected all {expected})"
 
@@ -308,7 +327,8 @@ def _check_gap_truth(d, gaps, r, label):
     assert bad_miss.size == 0 and bad_hit.size == 0, (
         f"{label}: {bad_miss.size} touching/overlapping pairs missed (e.g. {bad_miss[:8]}), "
         f"{bad_hit.size} separated pairs hit (e.g. {bad_hit[:8]}, gaps/S "
-        f"{(gaps[bad_hit[:8]] / d.scale[bad_hit[:8]]).round(6)})")
+        f"{(gaps[bad_hit[:8]] / d.scale[bad_hit[:8]]).round(6)})"
+    )
     BAND_REPORT[label] = (len(gaps), int((~must_hit & ~must_miss).sum()), bad_miss.size, bad_hit.size)
     assert must_hit.sum() >= 0.2 * len(gaps) and must_miss.sum() >= 0.2 * len(gaps)
 
@@ -327,8 +347,9 @@ def test_parallel_and_antiparallel_axes(relation, height):
         assert np.all(r.case[r.hit] == 4), r.case_counts()
     # The LP agrees too wherever it is decisive.
     sub = np.flatnonzero(rng.random(len(gaps)) < 0.5)
-    delta = margins([d.polys_a[k] for k in sub], d.pos_a[sub], d.rot_a[sub],
-                    [d.polys_b[k] for k in sub], d.pos_b[sub], d.rot_b[sub])
+    delta = margins(
+        [d.polys_a[k] for k in sub], d.pos_a[sub], d.rot_a[sub], [d.polys_b[k] for k in sub], d.pos_b[sub], d.rot_b[sub]
+    )
     check_agreement(delta, r.hit[sub], d.scale[sub], f"{relation}/{height}/lp", max_band_frac=1.0)
 
 
@@ -383,8 +404,14 @@ def test_nearly_perpendicular_axes(mode):
         delta = margins(d.polys_a, d.pos_a, d.rot_a, d.polys_b, d.pos_b, d.rot_b)
         # "vertex": b's top vertex on a's plane, so touching pairs (delta* ~ 0)
         # are frequent; only pairs outside the band are judged
-        check_agreement(delta, r.hit, d.scale, f"near-perp/{mode}/{eps:g}", case=r.case,
-                        max_band_frac=1.0 if mode == "vertex" else 0.005)
+        check_agreement(
+            delta,
+            r.hit,
+            d.scale,
+            f"near-perp/{mode}/{eps:g}",
+            case=r.case,
+            max_band_frac=1.0 if mode == "vertex" else 0.005,
+        )
 
 
 @pytest.mark.parametrize("height", ["coplanar", "random"])
@@ -489,13 +516,17 @@ def test_tolerance_semantics(relation, rtol, atol):
     bad_hit = np.flatnonzero(must_miss & r.hit)
     assert bad_miss.size == 0 and bad_hit.size == 0, (
         f"{bad_miss.size} pairs within tol missed (gap/tol {(gaps / tol)[bad_miss[:8]].round(4)}), "
-        f"{bad_hit.size} pairs beyond sqrt(2) tol hit (gap/tol {(gaps / tol)[bad_hit[:8]].round(4)})")
+        f"{bad_hit.size} pairs beyond sqrt(2) tol hit (gap/tol {(gaps / tol)[bad_hit[:8]].round(4)})"
+    )
     between = ~must_hit & ~must_miss
     BAND_REPORT[f"tol/{relation}/rtol={rtol:g},atol={atol:g}"] = (n, int(between.sum()), 0, 0)
     # the data must probe both sides of tol closely
     near = (gaps > 0) & (gaps < 2 * tol)
     assert must_hit.sum() >= 50 and must_miss.sum() >= 50 and near.sum() >= 50, (
-        must_hit.sum(), must_miss.sum(), near.sum())
+        must_hit.sum(),
+        must_miss.sum(),
+        near.sum(),
+    )
 
 
 def test_zzz_print_band_report():

@@ -93,9 +93,21 @@ def test_near_touching_pairs_with_a_known_gap(name, seed):
     known = np.flatnonzero(np.isfinite(ps.target))
     for k in known:
         A, B = pb.Prism(ps.xy_a[k]), pb.Prism(ps.xy_b[k])
-        _, tol = pair_scale_tolerance(A, B, ps.pos_a[k:k + 1], ps.rot_a[k:k + 1], ps.pos_b[k:k + 1], ps.rot_b[k:k + 1])
-        slack = 16 * np.finfo(float).eps * (np.abs(ps.pos_a[k]).max() + np.abs(ps.pos_b[k]).max()
-                                            + A.radius + B.radius + np.abs(ps.xy_a[k]).max() + np.abs(ps.xy_b[k]).max())
+        _, tol = pair_scale_tolerance(
+            A, B, ps.pos_a[k : k + 1], ps.rot_a[k : k + 1], ps.pos_b[k : k + 1], ps.rot_b[k : k + 1]
+        )
+        slack = (
+            16
+            * np.finfo(float).eps
+            * (
+                np.abs(ps.pos_a[k]).max()
+                + np.abs(ps.pos_b[k]).max()
+                + A.radius
+                + B.radius
+                + np.abs(ps.xy_a[k]).max()
+                + np.abs(ps.xy_b[k]).max()
+            )
+        )
         gap = ps.target[k] * tol[0]
         if gap <= tol[0] - slack:
             assert r.hit[k], (name, k, ps.target[k])

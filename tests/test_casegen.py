@@ -11,8 +11,9 @@ import numpy as np
 import pytest
 
 import prismbatch as pb
-from conftest import collinear_polygon, irregular_polygon
 from prismbatch.lab.casegen import CASE_NUMBERS, EXACT_CASES, HIT_AND_MISS_CASES, case_poses
+
+from conftest import collinear_polygon, irregular_polygon
 from reference import margin_lp
 
 
@@ -73,8 +74,11 @@ def test_case_hits_and_lp(case, shape, world):
         idx = np.concatenate([np.flatnonzero(r.hit)[:4], np.flatnonzero(~r.hit)[:4]])
     for i in idx:
         m = margin_lp(a.xy, P[0][i], P[1][i], b.xy, P[2][i], P[3][i])
-        S = a.radius + b.radius + np.linalg.norm(
-            P[2][i] + P[3][i][:, :2] @ b.centre - P[0][i] - P[1][i][:, :2] @ a.centre)
+        S = (
+            a.radius
+            + b.radius
+            + np.linalg.norm(P[2][i] + P[3][i][:, :2] @ b.centre - P[0][i] - P[1][i][:, :2] @ a.centre)
+        )
         band = 1e-7 * S
         if case in TOUCHING and r.hit[i]:
             assert abs(m) <= band, (i, m)  # touching by construction

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 import prismbatch as pb
+
 from reference import margin_lp
 
 A = pb.Prism.regular(5, 2.0)

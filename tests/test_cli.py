@@ -17,8 +17,9 @@ def test_help_lists_demo(capsys):
 
 
 def test_console_script_help():
-    out = subprocess.run([sys.executable, "-m", "prismbatch.cli", "demo", "--help"], capture_output=True,
-                         text=True, check=True).stdout
+    out = subprocess.run(
+        [sys.executable, "-m", "prismbatch.cli", "demo", "--help"], capture_output=True, text=True, check=True
+    ).stdout
     assert "--pairs" in out and "--distribution" in out
 
 

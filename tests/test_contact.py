@@ -21,6 +21,7 @@ import numpy as np
 import pytest
 
 import prismbatch as pb
+
 from conftest import (
     PairData,
     bisect_to_contact,
@@ -64,7 +65,8 @@ def check_contacts(d: PairData, r, label, *, rtol=1e-9, atol=0.0, slack_rel=SLAC
     bad = np.flatnonzero(worst > 1.0)
     assert bad.size == 0, (
         f"{label}: {bad.size} of {idx.size} contacts lie outside a prism by more than 2 tol, e.g. "
-        + ", ".join(f"pair {idx[j]}: residuals/S {res[j] / scale[idx[j]]}" for j in bad[:6]))
+        + ", ".join(f"pair {idx[j]}: residuals/S {res[j] / scale[idx[j]]}" for j in bad[:6])
+    )
     return idx.size, float(np.max(res / scale[idx, None])) if idx.size else 0.0
 
 
@@ -147,8 +149,7 @@ def test_float32_contacts(random_pairs):
     # the reference sees the poses the kernel saw (rounded to float32); the
     # polygons are rounded too (about 1e-7 R), well inside tol = 1e-5 S
     d32 = PairData(d.polys_a, d.polys_b, *(np.asarray(a, np.float32).astype(np.float64) for a in d.args()))
-    n_hits, _ = check_contacts(d32, r, "float32", rtol=1e-5, slack_rel=1e-6,
-                               contact=np.asarray(r.contact, np.float64))
+    n_hits, _ = check_contacts(d32, r, "float32", rtol=1e-5, slack_rel=1e-6, contact=np.asarray(r.contact, np.float64))
     assert n_hits >= 800
 
 
@@ -157,8 +158,7 @@ def test_contacts_with_large_tolerance(random_pairs, rtol, atol):
     """With a large tolerance, hits include pairs up to sqrt(2) tol apart;
     their contacts must still be within 2 tol of both prisms."""
     d = random_pairs
-    r = pb.collide(pb.PrismSet(d.polys_a), pb.PrismSet(d.polys_b), *d.args(), contact=True,
-                   rtol=rtol, atol=atol)
+    r = pb.collide(pb.PrismSet(d.polys_a), pb.PrismSet(d.polys_b), *d.args(), contact=True, rtol=rtol, atol=atol)
     base = pb.collide(pb.PrismSet(d.polys_a), pb.PrismSet(d.polys_b), *d.args())
     assert np.all(r.hit[base.hit]), "a larger tolerance cannot lose hits"
     n_hits, _ = check_contacts(d, r, f"rtol={rtol},atol={atol}", rtol=rtol, atol=atol)

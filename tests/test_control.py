@@ -8,6 +8,7 @@ import pytest
 import prismbatch as pb
 from prismbatch.control import CONTACT_CLASSES, detach
 from prismbatch.sampling import random_rotations
+
 from reference import margin_lp
 
 A = pb.Prism([[-1, -1], [1, -1], [1, 1], [-1, 1]])  # square, side 2
@@ -128,8 +129,10 @@ def test_fraction_of_random_colliding_pairs_where_a_step_reduces_penetration():
         after = margin_lp(a.xy, np.zeros(3), DOWN, b.xy, pos_b[i] + h * d.direction[j], Rb[i])
         ok += after < before - 1e-9
     frac = ok / len(idx)
-    print(f"\nstep of 1e-3 along the detach direction reduced the LP margin in {ok}/{len(idx)} "
-          f"random colliding pairs ({100 * frac:.1f} %); classes {np.bincount(d.contact_class, minlength=7)}")
+    print(
+        f"\nstep of 1e-3 along the detach direction reduced the LP margin in {ok}/{len(idx)} "
+        f"random colliding pairs ({100 * frac:.1f} %); classes {np.bincount(d.contact_class, minlength=7)}"
+    )
     assert len(idx) > 100
     assert frac > 0.5
 
@@ -170,25 +173,27 @@ def test_tol_one_per_pair():
     assert _detach_three(tol=np.array([1e-7, 1e-7, 0.6])).contact_class[2] == 5
 
 
-@pytest.mark.parametrize("tol, match", [
-    ([], r"tol must be a scalar or have shape \(3,\) \(one per pair\), got shape \(0,\)"),
-    ([1e-7, 1e-7], r"tol must be .* got shape \(2,\)"),
-    ([1e-7] * 4, r"tol must be .* got shape \(4,\)"),
-    ([[1e-7], [1e-7], [1e-7]], r"tol must be .* got shape \(3, 1\)"),
-    (np.full((1, 1), 1e-7), r"tol must be .* got shape \(1, 1\)"),
-    (-1e-7, r"^tol must be finite and >= 0, got -1e-07"),
-    (np.nan, r"^tol must be finite and >= 0, got nan"),
-    ([1e-7, np.inf, -1.0], r"^tol\[1\] must be finite and >= 0, got inf"),
-    ([1e-7, 1e-7, -1.0], r"^tol\[2\] must be finite and >= 0, got -1"),
-    ([[1e-7, 1e-7, 1e-7]], r"got shape \(1, 3\)"),
-])
+@pytest.mark.parametrize(
+    "tol, match",
+    [
+        ([], r"tol must be a scalar or have shape \(3,\) \(one per pair\), got shape \(0,\)"),
+        ([1e-7, 1e-7], r"tol must be .* got shape \(2,\)"),
+        ([1e-7] * 4, r"tol must be .* got shape \(4,\)"),
+        ([[1e-7], [1e-7], [1e-7]], r"tol must be .* got shape \(3, 1\)"),
+        (np.full((1, 1), 1e-7), r"tol must be .* got shape \(1, 1\)"),
+        (-1e-7, r"^tol must be finite and >= 0, got -1e-07"),
+        (np.nan, r"^tol must be finite and >= 0, got nan"),
+        ([1e-7, np.inf, -1.0], r"^tol\[1\] must be finite and >= 0, got inf"),
+        ([1e-7, 1e-7, -1.0], r"^tol\[2\] must be finite and >= 0, got -1"),
+        ([[1e-7, 1e-7, 1e-7]], r"got shape \(1, 3\)"),
+    ],
+)
 def test_bad_tol_raises_value_error(tol, match):
     with pytest.raises(ValueError, match=match):
         _detach_three(tol=tol)
 
 
-@pytest.mark.parametrize("tol", ["abc", "1e-7", ["1e-7"], [None], object(), True, [True, False, True],
-                                 1e-7 + 0j])
+@pytest.mark.parametrize("tol", ["abc", "1e-7", ["1e-7"], [None], object(), True, [True, False, True], 1e-7 + 0j])
 def test_non_numeric_tol_raises_type_error(tol):
     with pytest.raises(TypeError, match=r"^tol must have a real numeric dtype"):
         _detach_three(tol=tol)
@@ -201,16 +206,19 @@ def test_empty_tol_no_longer_reads_out_of_bounds():
             _detach_one(tol=[])
 
 
-@pytest.mark.parametrize("eps, exc, match", [
-    (-1.0, ValueError, r"^eps must be finite and >= 0, got -1"),
-    (np.nan, ValueError, r"^eps must be finite and >= 0, got nan"),
-    (np.inf, ValueError, r"^eps must be finite and >= 0, got inf"),
-    ([10.0], ValueError, r"^eps must be a scalar, got shape \(1,\)"),
-    (np.ones(3), ValueError, r"^eps must be a scalar, got shape \(3,\)"),
-    ("10", TypeError, r"^eps must be a real number, got str"),
-    (None, TypeError, r"^eps must be a real number, got NoneType"),
-    (True, TypeError, r"^eps must be a real number, got bool"),
-])
+@pytest.mark.parametrize(
+    "eps, exc, match",
+    [
+        (-1.0, ValueError, r"^eps must be finite and >= 0, got -1"),
+        (np.nan, ValueError, r"^eps must be finite and >= 0, got nan"),
+        (np.inf, ValueError, r"^eps must be finite and >= 0, got inf"),
+        ([10.0], ValueError, r"^eps must be a scalar, got shape \(1,\)"),
+        (np.ones(3), ValueError, r"^eps must be a scalar, got shape \(3,\)"),
+        ("10", TypeError, r"^eps must be a real number, got str"),
+        (None, TypeError, r"^eps must be a real number, got NoneType"),
+        (True, TypeError, r"^eps must be a real number, got bool"),
+    ],
+)
 def test_bad_eps(eps, exc, match):
     with pytest.raises(exc, match=match):
         _detach_one(eps=eps)
@@ -221,8 +229,7 @@ def test_eps_that_overflows_the_force_raises():
         _detach_one(eps=1e308)
     # The first pair whose force overflows is named; pairs without contact do not count.
     with pytest.raises(ValueError, match=r"gives pair 2 a non-finite force"):
-        detach(A, [[np.nan] * 3, [0, 0, 0], [0, 0, 0]], np.zeros(3), DOWN, np.eye(3),
-               [1e150, 1.0, 1e150], eps=1e200)
+        detach(A, [[np.nan] * 3, [0, 0, 0], [0, 0, 0]], np.zeros(3), DOWN, np.eye(3), [1e150, 1.0, 1e150], eps=1e200)
     # A large finite product is fine, and eps = 0 gives zero force.
     r = _detach_one(eps=1e300)
     np.testing.assert_allclose(r.force[0], 5e300 * r.direction[0], rtol=1e-15)

@@ -32,7 +32,7 @@ def _exact_gap2(g):
     return g.lo
 
 
-@pytest.mark.parametrize("h,gap", [(0.5, 0.5), (0.0, 0.0), (-0.25, 0.0), (2.0 ** -30, 2.0 ** -30)])
+@pytest.mark.parametrize("h,gap", [(0.5, 0.5), (0.0, 0.0), (-0.25, 0.0), (2.0**-30, 2.0**-30)])
 def test_stacked_squares(h, gap):
     # a's end face at z = 0 (body below), b's at z = h (body above), shifted sideways but overlapping.
     g = gap_bounds(SQ, [0, 0, 0], DOWN, SQ, [0.375, 0.25, h], I3)
@@ -53,13 +53,13 @@ def test_perpendicular_axes_vertex_to_face():
     # top face at height 1 + 2^-20 above a's end face plane z = 0 (a's body below).
     Rb = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])  # axis x, local x -> -z
     tri = np.array([[1.0, 0.0], [-1.0, 0.5], [-1.0, -0.5]])  # local x = 1 vertex maps to z = pz - 1
-    g = gap_bounds(SQ, [0, 0, 0], DOWN, tri, [0.0, 0.0, 1.0 + 2.0 ** -20], Rb)
-    assert _exact_gap2(g) == Fraction(2.0 ** -20) ** 2
+    g = gap_bounds(SQ, [0, 0, 0], DOWN, tri, [0.0, 0.0, 1.0 + 2.0**-20], Rb)
+    assert _exact_gap2(g) == Fraction(2.0**-20) ** 2
 
 
 @pytest.mark.parametrize("frac,verdict", [(0.5, "hit"), (1.0, "hit"), (1.5, "band"), (2.0, "band"), (3.0, "miss")])
 def test_verdicts_around_tol(frac, verdict):
-    tol = 2.0 ** -24
+    tol = 2.0**-24
     j = judge_pair(SQ, [0, 0, 0], DOWN, SQ, [0.5, 0.5, frac * tol], I3, tol)
     assert j.verdict == verdict
     assert j.gap2_lo == Fraction(frac * tol) ** 2
@@ -74,8 +74,14 @@ def _case(name):
 
 def test_saved_same_rotation_case():
     d, arr = _case("same_rotation_side_by_side")
-    g = gap_bounds(arr("xy_a", (-1, 2)), arr("pos_a", (3,)), arr("rot_a", (3, 3)),
-                   arr("xy_b", (-1, 2)), arr("pos_b", (3,)), arr("rot_b", (3, 3)))
+    g = gap_bounds(
+        arr("xy_a", (-1, 2)),
+        arr("pos_a", (3,)),
+        arr("rot_a", (3, 3)),
+        arr("xy_b", (-1, 2)),
+        arr("pos_b", (3,)),
+        arr("rot_b", (3, 3)),
+    )
     assert float(_exact_gap2(g)) ** 0.5 == pytest.approx(d["exact"]["gap_lo"], rel=1e-15)
 
 
@@ -104,7 +110,9 @@ def test_invariant_under_exact_translation_and_swap(seed, shift, swap):
     pa, pb = rng.integers(-64, 64, 3) / 64.0, rng.integers(-64, 64, 3) / 64.0  # on a coarse grid
     base = gap_bounds(SQ, pa, ra, SQ * 0.75, pb, rb)
     t = np.array(shift, dtype=float) * 0.25  # exact: the shifted positions stay on the grid
-    moved = gap_bounds(SQ * 0.75, pb + t, rb, SQ, pa + t, ra) if swap else gap_bounds(SQ, pa + t, ra, SQ * 0.75, pb + t, rb)
+    moved = (
+        gap_bounds(SQ * 0.75, pb + t, rb, SQ, pa + t, ra) if swap else gap_bounds(SQ, pa + t, ra, SQ * 0.75, pb + t, rb)
+    )
     assert (base.lo, base.hi) == (moved.lo, moved.hi)
 
 

@@ -17,8 +17,7 @@ import pytest
 
 from prismbatch.cli import main
 from prismbatch.control import CONTACT_CLASSES
-from prismbatch.lab.experiment import (FIG10_TIMES, format_summary, projected_contour, run_experiment,
-                                   write_experiment)
+from prismbatch.lab.experiment import FIG10_TIMES, format_summary, projected_contour, run_experiment, write_experiment
 
 VERTS = 360
 
@@ -78,8 +77,10 @@ def test_detach_separates_the_objects(name, request):
     g = r.geometry
     for k, ev in zip(np.flatnonzero(r.hit), r.summary["events"]):
         assert not r.hit[k + 1] and ev["next_step_collision_free"] and ev["step"] == k
-        m_prev, m_hit, m_next = (reference.margin_lp(g["xy_a"], g["pos_a"], g["rot_a"], g["xy_b"], r.dc[j],
-                                                     g["rot_b"]) for j in (k - 1, k, k + 1))
+        m_prev, m_hit, m_next = (
+            reference.margin_lp(g["xy_a"], g["pos_a"], g["rot_a"], g["xy_b"], r.dc[j], g["rot_b"])
+            for j in (k - 1, k, k + 1)
+        )
         assert m_prev < 0.0 <= m_hit  # the hit is real and the sample before was free
         assert m_next < -0.1  # a gap of at least 2 * 0.1 mm after the detach (the paper: "substantial margin")
         assert (r.dc[k + 1] - r.dc[k]) @ r.direction[k] > 0.3  # moved out by more than 0.3 mm
@@ -105,8 +106,10 @@ def test_force_plant_and_speed_limit_run():
     r = run_experiment("triangle", vertices=36, plant="force", timing=False)
     assert r.summary["case_sequence"] == [5, 6, 1] and r.hit.any() and r.summary["goal_reached"]
     slow = run_experiment("triangle", vertices=36, max_speed=0.5, timing=False)
-    assert slow.summary["first_collision_s"] > run_experiment("triangle", vertices=36, timing=False).summary[
-        "first_collision_s"]
+    assert (
+        slow.summary["first_collision_s"]
+        > run_experiment("triangle", vertices=36, timing=False).summary["first_collision_s"]
+    )
     steady = np.linalg.norm(np.diff(slow.dc, axis=0), axis=1)[~slow.hit[:-1]] / slow.params["dt_s"]
     assert steady.max() <= 0.5 + 1e-9
 
@@ -161,8 +164,24 @@ def test_writer_figures(square, tmp_path):
 
 
 def test_cli_experiment(capsys, tmp_path):
-    assert main(["experiment", "--prism", "triangle", "--vertices", "36", "--duration", "6", "--no-fcl",
-                 "--out", str(tmp_path), "--no-figures"]) == 0
+    assert (
+        main(
+            [
+                "experiment",
+                "--prism",
+                "triangle",
+                "--vertices",
+                "36",
+                "--duration",
+                "6",
+                "--no-fcl",
+                "--out",
+                str(tmp_path),
+                "--no-figures",
+            ]
+        )
+        == 0
+    )
     out = capsys.readouterr().out
     assert "case sequence: 5" in out and "collision: first at" in out and "wrote" in out
     assert (tmp_path / "experiment_triangle_trajectory.csv").exists()

@@ -6,8 +6,16 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from prismbatch.geometry import (AXIS_DOWN, ccw, centroid_radius, halfplanes, max_radius, point_in_prism_residual,
-                                 rotation_with_axis, signed_area)
+from prismbatch.geometry import (
+    AXIS_DOWN,
+    ccw,
+    centroid_radius,
+    halfplanes,
+    max_radius,
+    point_in_prism_residual,
+    rotation_with_axis,
+    signed_area,
+)
 
 angles = st.floats(0.0, 2 * math.pi)
 offsets = st.floats(-1e6, 1e6)
@@ -76,8 +84,7 @@ def test_point_in_prism_residual_and_halfplanes(n, phase, seed):
     rot = rotation_with_axis(rng.normal(size=3), rng.uniform(0, 6))
     for _ in range(5):
         x = pos + rng.uniform(-3, 3, 3)
-        assert math.isclose(point_in_prism_residual(xy, pos, rot, x), residual_by_loop(xy, pos, rot, x),
-                            abs_tol=1e-12)
+        assert math.isclose(point_in_prism_residual(xy, pos, rot, x), residual_by_loop(xy, pos, rot, x), abs_tol=1e-12)
     nrm, h = halfplanes(xy)
     assert len(h) == n
     np.testing.assert_allclose(nrm @ np.mean(xy, axis=0) - h, -1.5 * math.cos(math.pi / n) * np.ones(n), atol=1e-12)

@@ -1,4 +1,4 @@
-"""One orthonormality rule for rotation matrices, whatever the path (issue 9).
+"""One orthonormality rule for rotation matrices, whatever the path.
 
 The tolerance on max |R^T R - I| is ``ortho_tolerance(input dtype, compute
 dtype)`` = max(ORTHO_TOL[compute], 64 eps(input)); a rejected rotation's
@@ -99,8 +99,11 @@ def _accepts(f):
 
 
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])
-@pytest.mark.parametrize("rot", [R.astype(np.float32), R6.astype(np.float32),
-                                 scaled(R, 9e-6).astype(np.float32)], ids=["rounded", "6-decimals", "9e-6"])
+@pytest.mark.parametrize(
+    "rot",
+    [R.astype(np.float32), R6.astype(np.float32), scaled(R, 9e-6).astype(np.float32)],
+    ids=["rounded", "6-decimals", "9e-6"],
+)
 def test_collide_and_collide_pair_agree_on_float32_rotations(dtype, rot):
     col = pb.Collider(A, B, dtype=dtype)
     pa, pbp, I3 = np.zeros(3), np.array([0.0, 0.0, 1.0]), np.eye(3)

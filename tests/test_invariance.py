@@ -1,8 +1,8 @@
 """Invariances of ``prismbatch.collide``.
 
-From the issue: "one rigid transform applied to both poses; cyclic shift of
-vertex order; uniform scaling from 1e-6 to 1e3; swapping a and b gives the
-same hit".  Added: clockwise vertex order, moving/rotating a polygon in its
+Required invariances: one rigid transform applied to both poses; cyclic
+shift of vertex order; uniform scaling from 1e-6 to 1e3; swapping a and b
+gives the same hit.  Added: clockwise vertex order, moving/rotating a polygon in its
 own local frame with the pose compensating, and float32 vs float64.
 
 All comparisons are made on pairs clearly away from the touching band of
@@ -19,6 +19,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import prismbatch as pb
+
 from conftest import PairData, random_rotations, rot_z
 from reference import point_in_prism_residual
 
@@ -48,8 +49,10 @@ def assert_same(label, clear, hit0, hit1, case0=None, case1=None):
     assert diff.size == 0, f"{label}: hit differs for {diff.size} clear pairs, e.g. {diff[:10]}"
     if case0 is not None:
         cd = np.flatnonzero(clear & (case0 != case1))
-        assert cd.size == 0, (f"{label}: case differs for {cd.size} clear pairs, e.g. "
-                              f"{[(int(k), int(case0[k]), int(case1[k])) for k in cd[:10]]}")
+        assert cd.size == 0, (
+            f"{label}: case differs for {cd.size} clear pairs, e.g. "
+            f"{[(int(k), int(case0[k]), int(case1[k])) for k in cd[:10]]}"
+        )
 
 
 # ---------------------------------------------------------------------------
@@ -64,9 +67,14 @@ def test_rigid_transform_of_both_poses(data, translation):
     n = len(d)
     Q = random_rotations(rng, n)
     t = rng.uniform(-1, 1, (n, 3)) * translation
-    moved = PairData(d.polys_a, d.polys_b,
-                     np.einsum("nij,nj->ni", Q, d.pos_a) + t, Q @ d.rot_a,
-                     np.einsum("nij,nj->ni", Q, d.pos_b) + t, Q @ d.rot_b)
+    moved = PairData(
+        d.polys_a,
+        d.polys_b,
+        np.einsum("nij,nj->ni", Q, d.pos_a) + t,
+        Q @ d.rot_a,
+        np.einsum("nij,nj->ni", Q, d.pos_b) + t,
+        Q @ d.rot_b,
+    )
     r = run(moved, contact=True)
     assert_same(f"rigid transform (|t| ~ {translation:g})", clear, base.hit, r.hit, base.case, r.case)
 
@@ -79,8 +87,10 @@ def test_rigid_transform_of_both_poses(data, translation):
     assert close.mean() >= 0.99, f"only {close.sum()} of {hits.size} contacts move with the bodies"
     for k in hits:
         tol = 1e-9 * d.scale[k] + 1e-15 * translation
-        for poly, pos, rot in ((d.polys_a[k], moved.pos_a[k], moved.rot_a[k]),
-                               (d.polys_b[k], moved.pos_b[k], moved.rot_b[k])):
+        for poly, pos, rot in (
+            (d.polys_a[k], moved.pos_a[k], moved.rot_a[k]),
+            (d.polys_b[k], moved.pos_b[k], moved.rot_b[k]),
+        ):
             res = point_in_prism_residual(poly, pos, rot, r.contact[k])
             assert res <= 2 * tol + 1e-12 * d.scale[k], (k, res, tol)
 
@@ -181,8 +191,14 @@ def test_shared_prism_equals_per_pair_copies(data):
 @pytest.mark.parametrize("scale", [1e-6, 1e-3, 1.0, 1e3])
 def test_uniform_scaling(data, scale):
     d, clear, base = data
-    scaled = PairData([p * scale for p in d.polys_a], [p * scale for p in d.polys_b],
-                      d.pos_a * scale, d.rot_a, d.pos_b * scale, d.rot_b)
+    scaled = PairData(
+        [p * scale for p in d.polys_a],
+        [p * scale for p in d.polys_b],
+        d.pos_a * scale,
+        d.rot_a,
+        d.pos_b * scale,
+        d.rot_b,
+    )
     r = run(scaled, contact=True)
     assert_same(f"scale {scale:g}", clear, base.hit, r.hit, base.case, r.case)
     # contacts scale too (same relative pose up to rounding)

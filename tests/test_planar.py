@@ -27,8 +27,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from conftest import hash_str, polygon_centre, random_polygon, sample_vertex_count
 from prismbatch import planar
+
+from conftest import hash_str, polygon_centre, random_polygon, sample_vertex_count
 from reference import (
     polygon_halfplanes,
     ref_halfline_distance,
@@ -256,9 +257,12 @@ def gen_polygon(rng, g, big_tol=None):
         a, b = g.P[i], g.P[(i + 1) % g.n]
         L = np.hypot(*g.e[i])
         m = rng.integers(1, 6)
-        out = (a + rng.uniform(0, 1, (m, 1)) * g.e[i]
-               + rng.uniform(0.05, 1.0, (m, 1)) * L * g.en[i][None, :]
-               + rng.uniform(-0.5, 0.5, (m, 1)) * g.e[i])
+        out = (
+            a
+            + rng.uniform(0, 1, (m, 1)) * g.e[i]
+            + rng.uniform(0.05, 1.0, (m, 1)) * L * g.en[i][None, :]
+            + rng.uniform(-0.5, 0.5, (m, 1)) * g.e[i]
+        )
         pts = np.vstack([a, b, out])
         from scipy.spatial import ConvexHull
 
@@ -286,22 +290,30 @@ def polygon_radius_of(Q):
 
 KINDS = {
     # name: (generator, package call, reference distance, distance of x to the query shape)
-    "segment": (gen_segment,
-                lambda P, q, tol: planar.segment_polygon(P, q[0], q[1], tol),
-                lambda P, q: ref_polygon_distance(P, np.array([q[0], q[1]])),
-                lambda x, q: dist_point_segment(x, q[0], q[1])),
-    "halfline": (gen_halfline,
-                 lambda P, q, tol: planar.halfline_polygon(P, q[0], q[1], tol),
-                 lambda P, q: ref_halfline_distance(P, q[0], q[1]),
-                 lambda x, q: dist_point_ray(x, q[0], q[1])),
-    "strip": (gen_strip,
-              lambda P, q, tol: planar.strip_polygon(P, q[0], q[1], q[2], tol),
-              lambda P, q: ref_strip_distance(P, q[0], q[1], q[2]),
-              lambda x, q: dist_point_strip(x, q[0], q[1], q[2])),
-    "polygon": (gen_polygon,
-                lambda P, q, tol: planar.polygon_polygon(P, q, tol),
-                lambda P, q: ref_polygon_distance(P, q),
-                lambda x, q: dist_point_polygon(x, q)),
+    "segment": (
+        gen_segment,
+        lambda P, q, tol: planar.segment_polygon(P, q[0], q[1], tol),
+        lambda P, q: ref_polygon_distance(P, np.array([q[0], q[1]])),
+        lambda x, q: dist_point_segment(x, q[0], q[1]),
+    ),
+    "halfline": (
+        gen_halfline,
+        lambda P, q, tol: planar.halfline_polygon(P, q[0], q[1], tol),
+        lambda P, q: ref_halfline_distance(P, q[0], q[1]),
+        lambda x, q: dist_point_ray(x, q[0], q[1]),
+    ),
+    "strip": (
+        gen_strip,
+        lambda P, q, tol: planar.strip_polygon(P, q[0], q[1], q[2], tol),
+        lambda P, q: ref_strip_distance(P, q[0], q[1], q[2]),
+        lambda x, q: dist_point_strip(x, q[0], q[1], q[2]),
+    ),
+    "polygon": (
+        gen_polygon,
+        lambda P, q, tol: planar.polygon_polygon(P, q, tol),
+        lambda P, q: ref_polygon_distance(P, q),
+        lambda x, q: dist_point_polygon(x, q),
+    ),
 }
 
 
@@ -348,8 +360,10 @@ def run_cases(kind, n_cases, tol, big_tol=None, seed_name=None):
                 d_poly = dist_point_polygon(contact, P)
                 d_query = dist_query(contact, q)
                 if d_poly > ctol or d_query > ctol:
-                    msg = (f"contact {contact} is {d_poly:.3e} from the polygon and {d_query:.3e} "
-                           f"from the {kind} (ref distance {dist:.3e})")
+                    msg = (
+                        f"contact {contact} is {d_poly:.3e} from the polygon and {d_query:.3e} "
+                        f"from the {kind} (ref distance {dist:.3e})"
+                    )
         elif msg is None and not np.all(np.isnan(contact)):
             msg = f"no hit but contact {contact} is not NaN"
         if msg:
@@ -376,8 +390,9 @@ def test_planar_against_reference(kind):
 def test_planar_tolerance_semantics(kind):
     """tol = 0.05: hit iff the 2-D distance <= tol, contact within tol of both."""
     failures, stats = run_cases(kind, N_TOL_CASES, BIG_TOL, big_tol=BIG_TOL, seed_name=kind + "/tol")
-    assert not failures, (f"{len(failures)} of {N_TOL_CASES} {kind} cases failed (tol={BIG_TOL}):\n"
-                          + "\n".join(failures[:8]))
+    assert not failures, f"{len(failures)} of {N_TOL_CASES} {kind} cases failed (tol={BIG_TOL}):\n" + "\n".join(
+        failures[:8]
+    )
     # enough queries within (0, tol] and (tol, 2 tol]
     assert stats["must_hit"] >= 0.2 * N_TOL_CASES and stats["must_miss"] >= 0.2 * N_TOL_CASES, stats
 
@@ -451,8 +466,9 @@ def test_point_polygon_against_reference():
             if cands and min(abs(sd - cd) for cd in cands) > 1e-10 * (1 + g.r):
                 msgs.append(f"signed distance {sd:.6e} is not a wedge edge-line distance {cands}")
         if msgs:
-            failures.append(f"case {case} (n={len(P)}): " + "; ".join(msgs)
-                            + f"\n    P={P.tolist()}\n    x={x.tolist()}")
+            failures.append(
+                f"case {case} (n={len(P)}): " + "; ".join(msgs) + f"\n    P={P.tolist()}\n    x={x.tolist()}"
+            )
     assert not failures, f"{len(failures)} of {N_CASES} point cases failed:\n" + "\n".join(failures[:8])
     assert n_inside >= 0.2 * N_CASES and n_outside >= 0.2 * N_CASES, (n_inside, n_outside)
     assert 0.2 * N_CASES <= n_hit <= 0.9 * N_CASES

@@ -62,9 +62,7 @@ def test_quat_wxyz_matches_scipy(rng):
 def test_quat_orders_differ(rng):
     # Guards against one order silently being treated as the other.
     q = random_unit_quats_xyzw(rng, 1)[0]
-    assert not np.allclose(
-        as_rotations(q, quat_order="wxyz"), as_rotations(q, quat_order="xyzw")
-    )
+    assert not np.allclose(as_rotations(q, quat_order="wxyz"), as_rotations(q, quat_order="xyzw"))
 
 
 @pytest.mark.parametrize("order", ["wxyz", "xyzw"])
@@ -88,12 +86,8 @@ def test_quat_single_vs_batched(rng, order):
 
 
 def test_quat_identity_and_result_is_rotation(rng):
-    np.testing.assert_array_equal(
-        as_rotations([1, 0, 0, 0], quat_order="wxyz"), np.eye(3)
-    )
-    np.testing.assert_array_equal(
-        as_rotations([0, 0, 0, 1], quat_order="xyzw"), np.eye(3)
-    )
+    np.testing.assert_array_equal(as_rotations([1, 0, 0, 0], quat_order="wxyz"), np.eye(3))
+    np.testing.assert_array_equal(as_rotations([0, 0, 0, 1], quat_order="xyzw"), np.eye(3))
     R = as_rotations(random_unit_quats_xyzw(rng, 100), quat_order="wxyz")
     eye = np.broadcast_to(np.eye(3), R.shape)
     np.testing.assert_allclose(R @ R.transpose(0, 2, 1), eye, atol=1e-14)
@@ -245,9 +239,7 @@ def test_nonfinite_rotation_raises(rng, bad):
 def test_non_orthonormal_raises(rng):
     R = random_rotations(rng, 10)
     R[4] *= 1.001
-    with pytest.raises(
-        ValueError, match=r"rot_a\[4\] is not orthonormal: max \|R\^T R - I\| = 2\.00\de-03"
-    ):
+    with pytest.raises(ValueError, match=r"rot_a\[4\] is not orthonormal: max \|R\^T R - I\| = 2\.00\de-03"):
         as_rotations(R, name="rot_a")
     with pytest.raises(ValueError, match=r"^rot is not orthonormal"):
         as_rotations(R[4])

@@ -35,8 +35,7 @@ def random_convex_ngon(rng, n=10):
     """n points on a random ellipse (strictly convex curve), random orientation."""
     t = np.sort(rng.uniform(0, 2 * np.pi, n))
     # keep the angles apart so that no edge is degenerate
-    t = np.sort(np.mod(t[0] + np.linspace(0, 2 * np.pi, n, endpoint=False)
-                       + rng.uniform(-0.2, 0.2, n), 2 * np.pi))
+    t = np.sort(np.mod(t[0] + np.linspace(0, 2 * np.pi, n, endpoint=False) + rng.uniform(-0.2, 0.2, n), 2 * np.pi))
     a, b = rng.uniform(0.5, 1.5, 2)
     phi = rng.uniform(0, np.pi)
     c, s = np.cos(phi), np.sin(phi)
@@ -146,12 +145,12 @@ def test_margin_finite_lengths():
     # a along +z, b's end face at z = 3, also pointing up:
     # infinite a overlaps (margin = inradius), a of length 1 has a gap 2
     assert margin_lp(SQ, [0, 0, 0], I3, SQ, [0, 0, 3], I3) == pytest.approx(0.5, abs=1e-9)
-    assert margin_lp(SQ, [0, 0, 0], I3, SQ, [0, 0, 3], I3,
-                     length_a=1.0) == pytest.approx(-1.0, abs=1e-9)
+    assert margin_lp(SQ, [0, 0, 0], I3, SQ, [0, 0, 3], I3, length_a=1.0) == pytest.approx(-1.0, abs=1e-9)
     # a of length 2 at z = 3 pointing down (z in [1, 3]), b of length 1.5 up
     # from 0 (z in [0, 1.5]): common z-range of thickness 0.5 -> 0.25
-    assert margin_lp(SQ, [0, 0, 3], R_DOWN, SQ, [0, 0, 0], I3,
-                     length_a=2.0, length_b=1.5) == pytest.approx(0.25, abs=1e-9)
+    assert margin_lp(SQ, [0, 0, 3], R_DOWN, SQ, [0, 0, 0], I3, length_a=2.0, length_b=1.5) == pytest.approx(
+        0.25, abs=1e-9
+    )
 
 
 # ---------------------------------------------------------------------------
@@ -321,8 +320,7 @@ def random_margins():
 
 def _check_peer_signs(peer_cls, random_margins):
     cases, m_inf, lengths, m_fin = random_margins
-    hits = np.array([peer_cls(A, B, L).collide(pa, ra, pb, rb)
-                     for (A, pa, ra, B, pb, rb), L in zip(cases, lengths)])
+    hits = np.array([peer_cls(A, B, L).collide(pa, ra, pb, rb) for (A, pa, ra, B, pb, rb), L in zip(cases, lengths)])
     eps = 1e-6
     # sanity: the sample contains both outcomes in good numbers
     assert 50 < np.sum(m_inf > eps) < len(cases) - 50

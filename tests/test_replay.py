@@ -55,9 +55,25 @@ def test_replay_round_trip_is_bit_exact_and_reproduces_answers(tmp_path):
     recs = []
     for k, (a, b, pa, ra, pbp, rb) in enumerate(_pairs()):
         r = pb.Collider(a, b).collide_pair(pa, ra, pbp, rb)
-        recs.append(make_record("test", a, b, pa, ra, pbp, rb, rtol=1e-9, hit=r.hit, case=r.case,
-                                contact=r.contact if r.hit else None, references={"lp_margin": None},
-                                distribution="cases", index=k, seed=7))
+        recs.append(
+            make_record(
+                "test",
+                a,
+                b,
+                pa,
+                ra,
+                pbp,
+                rb,
+                rtol=1e-9,
+                hit=r.hit,
+                case=r.case,
+                contact=r.contact if r.hit else None,
+                references={"lp_margin": None},
+                distribution="cases",
+                index=k,
+                seed=7,
+            )
+        )
     path = write_replay(tmp_path / "r.json", recs, meta={"seed": 7})
     meta, back = read_replay(path)
     assert meta["seed"] == 7 and len(back) == len(recs)
@@ -115,9 +131,22 @@ def test_pair_scale_tolerance_matches_the_kernels_tolerance():
 def _good_record():
     a, b, pa, ra, pbp, rb = _pairs()[0]
     r = pb.Collider(a, b).collide_pair(pa, ra, pbp, rb)
-    return make_record("test", a, b, pa, ra, pbp, rb, rtol=1e-9, hit=r.hit, case=r.case,
-                       references={"fcl": True, "lp_margin": None}, distribution="cases", index=0,
-                       spawn_key=[1, 2])
+    return make_record(
+        "test",
+        a,
+        b,
+        pa,
+        ra,
+        pbp,
+        rb,
+        rtol=1e-9,
+        hit=r.hit,
+        case=r.case,
+        references={"fcl": True, "lp_margin": None},
+        distribution="cases",
+        index=0,
+        spawn_key=[1, 2],
+    )
 
 
 def _write_doc(tmp_path, doc):
@@ -143,57 +172,71 @@ def test_deeply_nested_file_is_a_clear_error(tmp_path):
     p = _write_doc(tmp_path, "[" * 100_000 + "]" * 100_000)
     with pytest.raises(ValueError, match=r"bad\.json: not a replay file: JSON nesting too deep"):
         read_replay(p)
-    p = _write_doc(tmp_path, '{"format": "prismbatch-replay", "version": 1, "records": [' + "[" * 100_000 + "]" * 100_000 + "]}")
+    p = _write_doc(
+        tmp_path, '{"format": "prismbatch-replay", "version": 1, "records": [' + "[" * 100_000 + "]" * 100_000 + "]}"
+    )
     with pytest.raises(ValueError, match="nesting too deep"):
         read_replay(p)
 
 
-@pytest.mark.parametrize("doc, match", [
-    ([1, 2], r"not a prismbatch replay file"),
-    ({"format": "prismbatch-replay", "version": True, "records": []}, r"replay format version True"),
-    ({"format": "prismbatch-replay", "version": "1", "records": []}, r"replay format version '1'"),
-    ({"format": "prismbatch-replay", "version": 1, "records": {}}, r"\"records\" must be a list, got an object"),
-    ({"format": "prismbatch-replay", "version": 1, "records": [[1, 2]]},
-     r"record 0 must be a JSON object \(a record\), got an array"),
-    ({"format": "prismbatch-replay", "version": 1, "meta": [], "records": []}, r"\"meta\" must be a JSON object"),
-    ({"format": "prismbatch-replay", "version": 1, "meta": {"versions": "x"}, "records": []},
-     r"meta\.versions must be a JSON object, got a string"),
-    ({"format": "prismbatch-replay", "version": 1, "meta": {"seed": [1]}, "records": []},
-     r"meta\.seed must be a string, number, boolean or null, got an array"),
-])
+@pytest.mark.parametrize(
+    "doc, match",
+    [
+        ([1, 2], r"not a prismbatch replay file"),
+        ({"format": "prismbatch-replay", "version": True, "records": []}, r"replay format version True"),
+        ({"format": "prismbatch-replay", "version": "1", "records": []}, r"replay format version '1'"),
+        ({"format": "prismbatch-replay", "version": 1, "records": {}}, r"\"records\" must be a list, got an object"),
+        (
+            {"format": "prismbatch-replay", "version": 1, "records": [[1, 2]]},
+            r"record 0 must be a JSON object \(a record\), got an array",
+        ),
+        ({"format": "prismbatch-replay", "version": 1, "meta": [], "records": []}, r"\"meta\" must be a JSON object"),
+        (
+            {"format": "prismbatch-replay", "version": 1, "meta": {"versions": "x"}, "records": []},
+            r"meta\.versions must be a JSON object, got a string",
+        ),
+        (
+            {"format": "prismbatch-replay", "version": 1, "meta": {"seed": [1]}, "records": []},
+            r"meta\.seed must be a string, number, boolean or null, got an array",
+        ),
+    ],
+)
 def test_malformed_document_is_a_clear_error(tmp_path, doc, match):
     with pytest.raises(ValueError, match=r"bad\.json: .*" + match):
         read_replay(_write_doc(tmp_path, doc))
 
 
-@pytest.mark.parametrize("changes, match", [
-    ({"pos_a": None}, r"record lacks pos_a"),
-    ({"prismbatch": None, "references": None}, r"record lacks prismbatch, references"),
-    ({"prismbatch.hit": None}, r"prismbatch\.hit must be true or false, got null"),
-    ({"kind": 3}, r"kind must be a string, got an integer"),
-    ({"pos_a": [0, 0, True]}, r"pos_a\[2\] must be a number, got a boolean"),
-    ({"pos_b": ["0", 0, 0]}, r"pos_b\[0\] must be a number, got a string"),
-    ({"rot_a": [[1, 0, 0], [0, 1, 0], [0, 0, "1"]]}, r"rot_a\[2\]\[2\] must be a number, got a string"),
-    ({"rot_b": [[1, 0, 0], [0, 1, 0]]}, r"rot_b has length 2, expected 3"),
-    ({"rot_b": {"a": 1}}, r"rot_b must be an array of length 3, got an object"),
-    ({"pos_a": [0, 0, None]}, r"pos_a\[2\] must be a number, got null"),
-    ({"pos_a": [0, 0, 10 ** 400]}, r"pos_a\[2\] must be a finite number, got inf"),
-    ({"shape_a": [[0, 0], [1, 0], [1]]}, r"shape_a\[2\] has length 1, expected 2"),
-    ({"shape_b": []}, r"shape_b has length 0, expected >= 1"),
-    ({"shape_b": [[0, 0], [1, False], [0, 1]]}, r"shape_b\[1\]\[1\] must be a number, got a boolean"),
-    ({"dtype": "float16"}, r"dtype must be \"float64\" or \"float32\", got 'float16'"),
-    ({"dtype": ["float64"]}, r"dtype must be .* got an array"),
-    ({"rtol": "1e-9"}, r"rtol must be a number, got a string"),
-    ({"atol": False}, r"atol must be a number, got a boolean"),
-    ({"rtol": -1.0}, r"rtol must be >= 0, got -1"),
-    ({"prismbatch": []}, r"prismbatch must be a JSON object, got an array"),
-    ({"prismbatch.case": True}, r"prismbatch\.case must be an integer, got a boolean"),
-    ({"prismbatch.contact": [0, "x", 0]}, r"prismbatch\.contact\[1\] must be a number, got a string"),
-    ({"references": [1]}, r"references must be a JSON object, got an array"),
-    ({"references.fcl": [True]}, r"references\['fcl'\] must be a string, number, boolean or null, got an array"),
-    ({"spawn_key": [1, {"x": 2}]}, r"spawn_key\[1\] must be a string, number, boolean or null, got an object"),
-    ({"distribution": {"a": 1}}, r"distribution must be a string, number, boolean or null, got an object"),
-])
+@pytest.mark.parametrize(
+    "changes, match",
+    [
+        ({"pos_a": None}, r"record lacks pos_a"),
+        ({"prismbatch": None, "references": None}, r"record lacks prismbatch, references"),
+        ({"prismbatch.hit": None}, r"prismbatch\.hit must be true or false, got null"),
+        ({"kind": 3}, r"kind must be a string, got an integer"),
+        ({"pos_a": [0, 0, True]}, r"pos_a\[2\] must be a number, got a boolean"),
+        ({"pos_b": ["0", 0, 0]}, r"pos_b\[0\] must be a number, got a string"),
+        ({"rot_a": [[1, 0, 0], [0, 1, 0], [0, 0, "1"]]}, r"rot_a\[2\]\[2\] must be a number, got a string"),
+        ({"rot_b": [[1, 0, 0], [0, 1, 0]]}, r"rot_b has length 2, expected 3"),
+        ({"rot_b": {"a": 1}}, r"rot_b must be an array of length 3, got an object"),
+        ({"pos_a": [0, 0, None]}, r"pos_a\[2\] must be a number, got null"),
+        ({"pos_a": [0, 0, 10**400]}, r"pos_a\[2\] must be a finite number, got inf"),
+        ({"shape_a": [[0, 0], [1, 0], [1]]}, r"shape_a\[2\] has length 1, expected 2"),
+        ({"shape_b": []}, r"shape_b has length 0, expected >= 1"),
+        ({"shape_b": [[0, 0], [1, False], [0, 1]]}, r"shape_b\[1\]\[1\] must be a number, got a boolean"),
+        ({"dtype": "float16"}, r"dtype must be \"float64\" or \"float32\", got 'float16'"),
+        ({"dtype": ["float64"]}, r"dtype must be .* got an array"),
+        ({"rtol": "1e-9"}, r"rtol must be a number, got a string"),
+        ({"atol": False}, r"atol must be a number, got a boolean"),
+        ({"rtol": -1.0}, r"rtol must be >= 0, got -1"),
+        ({"prismbatch": []}, r"prismbatch must be a JSON object, got an array"),
+        ({"prismbatch.case": True}, r"prismbatch\.case must be an integer, got a boolean"),
+        ({"prismbatch.contact": [0, "x", 0]}, r"prismbatch\.contact\[1\] must be a number, got a string"),
+        ({"references": [1]}, r"references must be a JSON object, got an array"),
+        ({"references.fcl": [True]}, r"references\['fcl'\] must be a string, number, boolean or null, got an array"),
+        ({"spawn_key": [1, {"x": 2}]}, r"spawn_key\[1\] must be a string, number, boolean or null, got an object"),
+        ({"distribution": {"a": 1}}, r"distribution must be a string, number, boolean or null, got an object"),
+    ],
+)
 def test_malformed_record_names_file_record_and_field(tmp_path, changes, match):
     p = _write_doc(tmp_path, _doc(**changes))
     with pytest.raises(ValueError, match=r"^.*bad\.json: record 0: " + match):
@@ -223,8 +266,11 @@ def test_write_replay_checks_the_same_schema(tmp_path):
 def test_huge_coordinates_give_a_clear_error(tmp_path):
     p = _write_doc(tmp_path, _doc(pos_b=[0.0, 0.0, 1e308]))
     read_replay(p)  # a finite number: the schema accepts it, the collision test rejects it by name
-    with pytest.raises(ValueError, match=r"bad\.json: record 0: pos_b has a coordinate 1e\+308 outside the "
-                                         r"supported range"):
+    with pytest.raises(
+        ValueError,
+        match=r"bad\.json: record 0: pos_b has a coordinate 1e\+308 outside the "
+        r"supported range",
+    ):
         replay(p, out=lambda s: None)
     p = _write_doc(tmp_path, _doc(shape_a=[[0, 0], [1e308, 0], [0, 1e308]]))
     with pytest.raises(ValueError, match=r"bad\.json: record 0: shape_a: .*outside the supported range"):
@@ -265,8 +311,9 @@ def test_escapes_in_the_file_name_and_error_messages(tmp_path):
     assert all(c.isprintable() for c in str(info.value))
 
 
-@pytest.mark.parametrize("changes, rc", [(None, 2), ({"pos_a": [0, 0, True]}, 2), ({"references": {"fcl": {}}}, 2),
-                                         ({"kind": ESC}, 0)])
+@pytest.mark.parametrize(
+    "changes, rc", [(None, 2), ({"pos_a": [0, 0, True]}, 2), ({"references": {"fcl": {}}}, 2), ({"kind": ESC}, 0)]
+)
 def test_cli_prints_one_line_and_no_escape_sequences(tmp_path, capsys, changes, rc):
     from prismbatch.cli import main
 

@@ -3,7 +3,6 @@ that shows every figure, and the notebook that redraws the figures from the
 CSV files (executed here on that output)."""
 
 import json
-import os
 import re
 from pathlib import Path
 
@@ -74,8 +73,16 @@ def test_notebook_redraws_every_figure_from_the_csvs(quick_output, tmp_path, mon
         if cell["cell_type"] == "code":
             exec(compile("".join(cell["source"]), str(NOTEBOOK), "exec"), ns)  # noqa: S102 - our notebook
     figs = ns["FIGURES"]
-    expected = {"fig7ab_latency_per_case", "fig7c_average", "table1", "throughput", "workprec", "fig10_contours",
-                "fig11a_trajectory", "fig11bc_states_inputs"}
+    expected = {
+        "fig7ab_latency_per_case",
+        "fig7c_average",
+        "table1",
+        "throughput",
+        "workprec",
+        "fig10_contours",
+        "fig11a_trajectory",
+        "fig11bc_states_inputs",
+    }
     assert set(figs) == expected
     for name, fig in figs.items():
         assert (tmp_path / f"{name}.png").stat().st_size > 0

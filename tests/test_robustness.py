@@ -29,8 +29,15 @@ def _load_case(name):
     d = json.loads((DATA / f"{name}.json").read_text())
     h = float.fromhex
     arr = lambda key, shape: np.array([h(x) for x in np.ravel(d[key])]).reshape(shape)  # noqa: E731
-    case = dict(xa=arr("xy_a", (-1, 2)), xb=arr("xy_b", (-1, 2)), pa=arr("pos_a", (3,)), pb=arr("pos_b", (3,)),
-                ra=arr("rot_a", (3, 3)), rb=arr("rot_b", (3, 3)), verdict=d["exact"]["verdict"])
+    case = dict(
+        xa=arr("xy_a", (-1, 2)),
+        xb=arr("xy_b", (-1, 2)),
+        pa=arr("pos_a", (3,)),
+        pb=arr("pos_b", (3,)),
+        ra=arr("rot_a", (3, 3)),
+        rb=arr("rot_b", (3, 3)),
+        verdict=d["exact"]["verdict"],
+    )
     if d.get("quat_a") is not None:
         case.update(qa=arr("quat_a", (4,)), qb=arr("quat_b", (4,)), order=d["quat_order"])
     return case
@@ -98,7 +105,7 @@ def test_magnitudes_inside_the_range_are_scale_free():
     q = rng.uniform(-3, 3, size=(400, 3))
     base = pb.collide(SQUARE, SQUARE, np.zeros(3), np.eye(3), q, R).hit
     for e in (-40, -20, 20, 40):
-        s = 2.0 ** e
+        s = 2.0**e
         sq = pb.Prism(SQUARE.xy * s)
         assert (pb.collide(sq, sq, np.zeros(3), np.eye(3), q * s, R).hit == base).all()
 
@@ -121,12 +128,17 @@ def test_float32_answers_inside_its_range_match_float64(scale):
 def test_float32_positions_beyond_its_range_raise(pos):
     sq = pb.Prism.regular(4, 1.0)
     down = np.diag([1.0, -1.0, -1.0])
-    with pytest.raises(ValueError, match=r"pos_b\[0\] has a coordinate .* outside the supported range \|x\| <= 1e\+12 for float32"):
+    with pytest.raises(
+        ValueError, match=r"pos_b\[0\] has a coordinate .* outside the supported range \|x\| <= 1e\+12 for float32"
+    ):
         pb.collide(sq, sq, [0, 0, 0], down, np.array([pos, pos]), np.eye(3), dtype=np.float32)
     # (1e39 is inf once the caller has rounded it to float32.)
-    with pytest.raises(ValueError, match=r"pos_b (has a coordinate .* outside the supported range \|x\| <= 1e\+12|contains non-finite)"):
-        pb.Collider(sq, sq, dtype=np.float32).collide_pair(np.zeros(3, np.float32), down.astype(np.float32),
-                                                          np.array(pos, np.float32), np.eye(3, dtype=np.float32))
+    with pytest.raises(
+        ValueError, match=r"pos_b (has a coordinate .* outside the supported range \|x\| <= 1e\+12|contains non-finite)"
+    ):
+        pb.Collider(sq, sq, dtype=np.float32).collide_pair(
+            np.zeros(3, np.float32), down.astype(np.float32), np.array(pos, np.float32), np.eye(3, dtype=np.float32)
+        )
     assert pb.collide(sq, sq, [0, 0, 0], down, [1e20, 0, -1], np.eye(3)).hit.tolist() == [False]  # float64: fine
 
 
@@ -143,10 +155,12 @@ def test_positions_outside_the_range_raise(bad):
     a, b = pb.Prism.regular(5, 2.0), pb.Prism.regular(6, 2.5)
     down = np.diag([1.0, -1.0, -1.0])
     col = pb.Collider(a, b)
-    for call in (lambda: pb.collide(a, b, [bad, 0, 0], down, [-1e308, 0, 0], np.eye(3)),
-                 lambda: pb.collide(a, b, np.array([[0, 0, bad]] * 5), down, np.zeros(3), np.eye(3)),
-                 lambda: col.collide_pair(np.array([bad, 0, 0]), down, np.zeros(3), np.eye(3)),
-                 lambda: col.explain(np.zeros(3), down, np.array([0, 0, bad]), np.eye(3))):
+    for call in (
+        lambda: pb.collide(a, b, [bad, 0, 0], down, [-1e308, 0, 0], np.eye(3)),
+        lambda: pb.collide(a, b, np.array([[0, 0, bad]] * 5), down, np.zeros(3), np.eye(3)),
+        lambda: col.collide_pair(np.array([bad, 0, 0]), down, np.zeros(3), np.eye(3)),
+        lambda: col.explain(np.zeros(3), down, np.array([0, 0, bad]), np.eye(3)),
+    ):
         with pytest.raises(ValueError, match="pos_"):
             call()
 
@@ -194,7 +208,8 @@ def test_read_only_inputs_are_accepted_everywhere():
 def test_fork_after_a_parallel_call_gives_working_children(tmp_path, parent, child):
     # detach chooses its kernel through the same fork guard as collide.
     script = tmp_path / "fork_pool.py"
-    script.write_text(textwrap.dedent(f"""
+    script.write_text(
+        textwrap.dedent(f"""
         import multiprocessing as mp
         import numpy as np
         import prismbatch as pb
@@ -214,9 +229,11 @@ def test_fork_after_a_parallel_call_gives_working_children(tmp_path, parent, chi
             with mp.get_context("fork").Pool(2) as pool:
                 in_children = pool.map(work["{child}"], range(3))
             print(work["{child}"](0), in_children)
-    """))
-    out = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=600,
-                         env=dict(os.environ))
+    """)
+    )
+    out = subprocess.run(
+        [sys.executable, str(script)], capture_output=True, text=True, timeout=600, env=dict(os.environ)
+    )
     assert out.returncode == 0, out.stderr
     first, rest = out.stdout.split(" ", 1)
     assert json.loads(rest) == [int(first)] * 3

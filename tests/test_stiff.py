@@ -9,6 +9,7 @@ import pytest
 
 import prismbatch as pb
 from prismbatch.sampling import random_rotations
+
 from reference import margin_lp, point_in_prism_residual
 
 A = pb.Prism.regular(7, 2.0)
@@ -25,8 +26,10 @@ def _certified(shape_a, shape_b, pa, Ra, pbb, Rb, x):
     """Contact x lies in both bodies within tol plus the rounding of x's own size."""
     tol = 1e-9 * (shape_a.radius + shape_b.radius + np.linalg.norm(pbb - pa) + 4 * (shape_a.radius + shape_b.radius))
     slack = 2 * tol + 1e-13 * np.linalg.norm(x - pa)
-    return (point_in_prism_residual(shape_a.xy, pa, Ra, x) <= slack
-            and point_in_prism_residual(shape_b.xy, pbb, Rb, x) <= slack)
+    return (
+        point_in_prism_residual(shape_a.xy, pa, Ra, x) <= slack
+        and point_in_prism_residual(shape_b.xy, pbb, Rb, x) <= slack
+    )
 
 
 def _check(shape_a, shape_b, pa, Ra, pbb, Rb, label):
@@ -91,8 +94,12 @@ def test_near_parallel_axes(eps, facing):
     Ra = np.tile(down, (n, 1, 1))
     pa = np.zeros((n, 3))
     base = np.eye(3) if facing else down
-    Rb = np.array([_axis_rotation([np.cos(t), np.sin(t), 0], eps) @ _axis_rotation([0, 0, 1], s) @ base
-                   for t, s in rng.uniform(0, 2 * np.pi, (n, 2))])
+    Rb = np.array(
+        [
+            _axis_rotation([np.cos(t), np.sin(t), 0], eps) @ _axis_rotation([0, 0, 1], s) @ base
+            for t, s in rng.uniform(0, 2 * np.pi, (n, 2))
+        ]
+    )
     pbb = np.column_stack([rng.uniform(-4, 4, (n, 2)), rng.uniform(-1.0, 1.0, n)])
     r, _ = _check(A, B, pa, Ra, pbb, Rb, f"eps={eps}, facing={facing}")
     assert r.hit.any() and not r.hit.all()
@@ -139,16 +146,27 @@ def test_vertex_counts(n_vertices):
         # The LP with 2 x 100,000 constraints is slow: compare against the
         # same poses on the 1000-gon pair, scaled so both are circles to 1e-5,
         # only where the margin is clear of that approximation.
-        r = pb.collide(a, b, pa, random_rotations(n, np.random.default_rng(1)), pbb,
-                       random_rotations(n, np.random.default_rng(2)))
-        ref = pb.collide(pb.Prism.regular(4000, 2.0), pb.Prism.regular(4000, 1.5, phase=0.3), pa,
-                         random_rotations(n, np.random.default_rng(1)), pbb,
-                         random_rotations(n, np.random.default_rng(2)))
+        r = pb.collide(
+            a, b, pa, random_rotations(n, np.random.default_rng(1)), pbb, random_rotations(n, np.random.default_rng(2))
+        )
+        ref = pb.collide(
+            pb.Prism.regular(4000, 2.0),
+            pb.Prism.regular(4000, 1.5, phase=0.3),
+            pa,
+            random_rotations(n, np.random.default_rng(1)),
+            pbb,
+            random_rotations(n, np.random.default_rng(2)),
+        )
         ca = pb.Prism.regular(1000, 2.0)
         for i in range(n):
-            m = margin_lp(ca.xy, pa[i], random_rotations(n, np.random.default_rng(1))[i],
-                          pb.Prism.regular(1000, 1.5, phase=0.3).xy, pbb[i],
-                          random_rotations(n, np.random.default_rng(2))[i])
+            m = margin_lp(
+                ca.xy,
+                pa[i],
+                random_rotations(n, np.random.default_rng(1))[i],
+                pb.Prism.regular(1000, 1.5, phase=0.3).xy,
+                pbb[i],
+                random_rotations(n, np.random.default_rng(2))[i],
+            )
             if abs(m) > 1e-3:
                 assert bool(r.hit[i]) == (m > 0) == bool(ref.hit[i])
         return
@@ -163,5 +181,12 @@ def test_slivers_and_nearly_collinear_vertices():
     almost = pb.Prism(np.c_[np.cos(ang), 1e-7 * np.sin(ang) + 0.0])
     n = 200
     for a, b in ((sliver, B), (A, sliver), (almost, sliver), (almost, A)):
-        _check(a, b, rng.uniform(-1, 1, (n, 3)), random_rotations(n, rng), rng.uniform(-1, 1, (n, 3)),
-               random_rotations(n, rng), "sliver")
+        _check(
+            a,
+            b,
+            rng.uniform(-1, 1, (n, 3)),
+            random_rotations(n, rng),
+            rng.uniform(-1, 1, (n, 3)),
+            random_rotations(n, rng),
+            "sliver",
+        )

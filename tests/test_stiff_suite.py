@@ -12,6 +12,7 @@ import pytest
 
 import prismbatch as pb
 import prismbatch.lab.stiff as st
+
 from reference import margin_lp, point_in_prism_residual
 
 
@@ -68,7 +69,7 @@ def test_report_outputs(quick_report, tmp_path):
     md = r.markdown()
     assert "### float64" in md and "### Where float32 departs" in md and "storage" in md
     assert md.count("\n| separation |") == 2 * len(st.FAMILIES["separation"][1])
-    (header, rows), = r.csv_tables().values()
+    ((header, rows),) = r.csv_tables().values()
     assert len(rows) == len(r.rows) and all(len(row) == len(header) for row in rows)
     j = r.json()
     assert j["ok"] is True and len(j["rows"]) == len(r.rows) and "versions" in j["meta"]
@@ -81,15 +82,20 @@ def _draw(rng, n):
 
 
 def _check_against_lp(ps, label, overlap_depth=True):
-    S = np.array([st.pair_scale(ps.polys_a[k], ps.pos_a[k], ps.rot_a[k], ps.polys_b[k], ps.pos_b[k], ps.rot_b[k])
-                  for k in range(len(ps))])
+    S = np.array(
+        [
+            st.pair_scale(ps.polys_a[k], ps.pos_a[k], ps.rot_a[k], ps.polys_b[k], ps.pos_b[k], ps.rot_b[k])
+            for k in range(len(ps))
+        ]
+    )
     for k in range(len(ps)):
         m = margin_lp(ps.polys_a[k], ps.pos_a[k], ps.rot_a[k], ps.polys_b[k], ps.pos_b[k], ps.rot_b[k])
         g = ps.gap[k]
         if g > 1e-6 * S[k]:
             assert m < 0 and 2 * abs(m) <= g * (1 + 1e-6) + 1e-9 * S[k], (label, k, g, m)  # gap >= 2 |margin|
-            plane = st.plane_certificate(ps.polys_a[k], ps.pos_a[k], ps.rot_a[k], ps.polys_b[k], ps.pos_b[k],
-                                         ps.rot_b[k])
+            plane = st.plane_certificate(
+                ps.polys_a[k], ps.pos_a[k], ps.rot_a[k], ps.polys_b[k], ps.pos_b[k], ps.rot_b[k]
+            )
             # a lower bound (SAT normals, not necessarily the closest direction) that never exceeds the gap
             assert 0 < plane <= g * (1 + 1e-6) + 1e-12 * S[k], (label, k, g, plane)
         elif g < -1e-6 * S[k]:
@@ -104,8 +110,10 @@ def test_constructions_agree_with_the_lp(kind):
     seps = np.tile([-1e-3, -1e-4, 1e-4, 1e-3], n // 4)
     A = _draw(rng, n)
     if kind == "face":
-        rots = [st._with_axis(np.array([np.sin(t) * np.cos(a), np.sin(t) * np.sin(a), np.cos(t)]), s)
-                for t, a, s in rng.uniform(0, [np.pi / 2, 2 * np.pi, 2 * np.pi], (n, 3))]
+        rots = [
+            st._with_axis(np.array([np.sin(t) * np.cos(a), np.sin(t) * np.sin(a), np.cos(t)]), s)
+            for t, a, s in rng.uniform(0, [np.pi / 2, 2 * np.pi, 2 * np.pi], (n, 3))
+        ]
         ps = st.face_pairs(rng, A, _draw(rng, n), rots, seps)
     elif kind == "side":
         # slivers too: an overlap must stay inside a thin a

@@ -11,8 +11,13 @@ OPTIONAL = ("matplotlib", "fcl", "coal", "dask", "distributed", "tqdm", "highspy
 
 
 def _run(code, **env):
-    return subprocess.run([sys.executable, "-c", textwrap.dedent(code)], capture_output=True, text=True,
-                          timeout=600, env={**os.environ, **env})
+    return subprocess.run(
+        [sys.executable, "-c", textwrap.dedent(code)],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        env={**os.environ, **env},
+    )
 
 
 def test_import_loads_no_lab_module_and_no_optional_package():

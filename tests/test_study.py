@@ -15,6 +15,7 @@ import prismbatch as pb
 from prismbatch.lab import study
 from prismbatch.lab.casegen import CASE_NUMBERS, EXACT_CASES, HIT_AND_MISS_CASES, case_poses
 from prismbatch.lab.study import fit_growth, format_study, run_study, write_study
+
 from reference import margin_lp
 
 VERTS = (8, 24, 60)
@@ -23,8 +24,16 @@ POSES = 10
 
 @pytest.fixture(scope="module")
 def res():
-    return run_study(vertices=VERTS, cases=CASE_NUMBERS, poses_per_case=POSES, repeats=2, batch_pairs=64,
-                     progress=False, lp_checks=3, table_vertices=24)
+    return run_study(
+        vertices=VERTS,
+        cases=CASE_NUMBERS,
+        poses_per_case=POSES,
+        repeats=2,
+        batch_pairs=64,
+        progress=False,
+        lp_checks=3,
+        table_vertices=24,
+    )
 
 
 def test_every_cell_timed_for_every_method(res):
@@ -69,8 +78,11 @@ def test_hits_follow_casegen_and_peers_agree_off_touching(res):
 
 
 def res_hits(res, method, cell):
-    return next(r["hits"] for r in res.latency
-                if (r["method"], r["case"], r["vertices"]) == (method, cell["case"], cell["vertices"]))
+    return next(
+        r["hits"]
+        for r in res.latency
+        if (r["method"], r["case"], r["vertices"]) == (method, cell["case"], cell["vertices"])
+    )
 
 
 def test_exact_case_disagreements_are_touching_by_lp(res):
@@ -139,8 +151,9 @@ def test_table1_matches_latency_and_paper(res):
     want = np.mean([res.latency_us("prismbatch", c, 24) for c in range(1, 10)])
     assert avg[0]["prismbatch_us"] == pytest.approx(want)
     # the paper's average: 0.2 ms vs 5 ms
-    assert avg[0]["paper_projection_us"] == pytest.approx(1e3 * np.mean([0.03, 0.10, 0.17, 0.31, 0.09,
-                                                                          0.55, 0.12, 0.20, 0.29]))
+    assert avg[0]["paper_projection_us"] == pytest.approx(
+        1e3 * np.mean([0.03, 0.10, 0.17, 0.31, 0.09, 0.55, 0.12, 0.20, 0.29])
+    )
 
 
 def test_fit_growth_recovers_known_slope():
@@ -185,10 +198,13 @@ def test_format_study(res):
 def test_write_study_files(res, tmp_path):
     pytest.importorskip("matplotlib")
     paths = write_study(res, tmp_path)
-    for key, cols, n in (("latency", "median_us", len(res.latency)), ("throughput", "median_pairs_per_s",
-                                                                      len(res.throughput)),
-                         ("growth", "slope_us_per_1000", len(res.growth)), ("table1", "pb_over_fcl", len(res.table1)),
-                         ("agreement", "disagreements", len(res.agreement))):
+    for key, cols, n in (
+        ("latency", "median_us", len(res.latency)),
+        ("throughput", "median_pairs_per_s", len(res.throughput)),
+        ("growth", "slope_us_per_1000", len(res.growth)),
+        ("table1", "pb_over_fcl", len(res.table1)),
+        ("agreement", "disagreements", len(res.agreement)),
+    ):
         with open(paths[key], newline="") as f:
             rows = list(csv.DictReader(f))
         assert len(rows) == n and cols in rows[0]
@@ -201,8 +217,13 @@ def test_write_study_files(res, tmp_path):
     md = open(paths["markdown"], encoding="utf-8").read()
     assert "Table I" in md and "study_fig7c_average.png" in md
     names = {p.rsplit("/", 1)[-1] for p in paths["figures"]}
-    for stem in ("study_fig7a_prismbatch", "study_fig7b_peers", "study_fig7c_average", "study_table1",
-                 "study_throughput"):
+    for stem in (
+        "study_fig7a_prismbatch",
+        "study_fig7b_peers",
+        "study_fig7c_average",
+        "study_table1",
+        "study_throughput",
+    ):
         assert {f"{stem}.png", f"{stem}.svg"} <= names
     assert (tmp_path / "study_table1.png").stat().st_size > 1000
 
@@ -210,8 +231,16 @@ def test_write_study_files(res, tmp_path):
 def test_missing_cases_are_reported():
     """A cell is missing exactly when casegen cannot build it (fine polygons, case 2)."""
     n = 12000
-    r = run_study(vertices=(n,), cases=(2, 4), poses_per_case=4, repeats=1, batch_pairs=8, peers=(),
-                  progress=False, table_vertices=n)
+    r = run_study(
+        vertices=(n,),
+        cases=(2, 4),
+        poses_per_case=4,
+        repeats=1,
+        batch_pairs=8,
+        peers=(),
+        progress=False,
+        table_vertices=n,
+    )
     A, B = pb.Prism.regular(n, study.RADIUS_A), pb.Prism.regular(n, study.RADIUS_B)
     for case in (2, 4):
         try:
@@ -236,26 +265,30 @@ def test_missing_peer_is_a_note(monkeypatch):
         raise ImportError("coal is not installed (simulated)")
 
     monkeypatch.setattr(CoalPeer, "_import", staticmethod(no_coal))
-    r = run_study(vertices=(8, 16), cases=(1, 6), poses_per_case=4, repeats=1, batch_pairs=8, progress=False,
-                  table_vertices=16)
+    r = run_study(
+        vertices=(8, 16), cases=(1, 6), poses_per_case=4, repeats=1, batch_pairs=8, progress=False, table_vertices=16
+    )
     assert "coal" not in r.methods and "fcl" in r.methods
     assert any("coal skipped" in nt for nt in r.notes)
     assert all(t["coal_us"] is None and t["fcl_us"] is not None for t in r.table1)
     assert not [a for a in r.agreement if a["peer"] == "coal"]
 
 
-@pytest.mark.parametrize("kw, exc, word", [
-    (dict(vertices=(2, 8)), ValueError, "vertices"),
-    (dict(vertices=(8, 8)), ValueError, "vertices"),
-    (dict(vertices=8), TypeError, "vertices"),
-    (dict(cases=(0,)), ValueError, "cases"),
-    (dict(poses_per_case=0), ValueError, "poses_per_case"),
-    (dict(repeats=1.5), TypeError, "repeats"),
-    (dict(peers=("swift",)), ValueError, "peers"),
-    (dict(peers="fcl"), TypeError, "peers"),
-    (dict(table_vertices=100), ValueError, "table_vertices"),
-    (dict(seed=-1), ValueError, "seed"),
-])
+@pytest.mark.parametrize(
+    "kw, exc, word",
+    [
+        (dict(vertices=(2, 8)), ValueError, "vertices"),
+        (dict(vertices=(8, 8)), ValueError, "vertices"),
+        (dict(vertices=8), TypeError, "vertices"),
+        (dict(cases=(0,)), ValueError, "cases"),
+        (dict(poses_per_case=0), ValueError, "poses_per_case"),
+        (dict(repeats=1.5), TypeError, "repeats"),
+        (dict(peers=("swift",)), ValueError, "peers"),
+        (dict(peers="fcl"), TypeError, "peers"),
+        (dict(table_vertices=100), ValueError, "table_vertices"),
+        (dict(seed=-1), ValueError, "seed"),
+    ],
+)
 def test_bad_arguments(kw, exc, word):
     args = dict(vertices=(8, 16), poses_per_case=2, repeats=1, progress=False, table_vertices=16)
     args.update(kw)

@@ -29,8 +29,15 @@ N_SHORT = 5000  # per distribution: 20,000 pairs in all
 
 @pytest.fixture(scope="module")
 def short_run():
-    return V.validate(N_SHORT, shapes=("regular", "random", "cylinder"), vertices=(3, 12, 48), seed=11,
-                      lp_samples=120, chunk_size=4096, progress=False)
+    return V.validate(
+        N_SHORT,
+        shapes=("regular", "random", "cylinder"),
+        vertices=(3, 12, 48),
+        seed=11,
+        lp_samples=120,
+        chunk_size=4096,
+        progress=False,
+    )
 
 
 def test_short_run_has_no_disagreement_outside_band(short_run):
@@ -40,7 +47,7 @@ def test_short_run_has_no_disagreement_outside_band(short_run):
         assert c["pairs"] == N_SHORT
         assert c["fcl_pairs"] == N_SHORT
         assert c["lp_pairs"] == 120
-        # the part of the issue this run is for
+        # the validation contract: no disagreement outside the band, every contact valid
         assert int(c["fcl_out_pb"].sum()) == 0, d
         assert int(c["lp_out"].sum()) == 0, d
         assert c["contact_invalid"] == 0 and c["nonfinite"] == 0 and c["bad_case"] == 0, d
@@ -98,8 +105,7 @@ def test_replay_round_trip(short_run, tmp_path):
         assert rec["kind"] in V.RECORD_KINDS
         a, b = pb.Prism(rec["shape_a"]), pb.Prism(rec["shape_b"])
         P = [np.array(rec[k]) for k in ("pos_a", "rot_a", "pos_b", "rot_b")]
-        res = pb.collide(a, b, *P, rtol=rec["rtol"], atol=rec["atol"], dtype=np.dtype(rec["dtype"]),
-                         contact=True)
+        res = pb.collide(a, b, *P, rtol=rec["rtol"], atol=rec["atol"], dtype=np.dtype(rec["dtype"]), contact=True)
         assert bool(res.hit[0]) == rec["prismbatch"]["hit"] and int(res.case[0]) == rec["prismbatch"]["case"]
         if rec["prismbatch"]["contact"] is not None:
             assert res.contact[0].tolist() == rec["prismbatch"]["contact"]
@@ -125,8 +131,15 @@ def test_replay_round_trip(short_run, tmp_path):
 
 
 def test_results_do_not_depend_on_chunk_size():
-    kw = dict(distributions=("free", "near-contact"), vertices=(4, 9), shapes=("random", "regular"), seed=5,
-              lp_samples=20, fcl=0.3, progress=False)
+    kw = dict(
+        distributions=("free", "near-contact"),
+        vertices=(4, 9),
+        shapes=("random", "regular"),
+        seed=5,
+        lp_samples=20,
+        fcl=0.3,
+        progress=False,
+    )
     r1 = V.validate(4200, chunk_size=4096, **kw)  # two blocks: 4096 + 104 pairs
     r2 = V.validate(4200, chunk_size=100_000, **kw)
     assert r1.outcome() == r2.outcome()
@@ -203,7 +216,7 @@ def test_standin_rule_bounds_every_common_point():
         pb_ = pa + rng.uniform(-3, 3, 3)
         sl = standin_lengths(A.xy, B.xy, pa, ra, pb_, rb)
         assert sl.sound[0] and sl.length[0] == pytest.approx(2 * sl.bound[0])
-        for (xa, p1, r1, xb, p2, r2) in ((A.xy, pa, ra, B.xy, pb_, rb), (B.xy, pb_, rb, A.xy, pa, ra)):
+        for xa, p1, r1, xb, p2, r2 in ((A.xy, pa, ra, B.xy, pb_, rb), (B.xy, pb_, rb, A.xy, pa, ra)):
             depth = _max_depth_lp(xa, p1, r1, xb, p2, r2)
             if depth is not None:
                 met += 1
@@ -254,20 +267,23 @@ def test_standin_rule_parallel_and_bad_args():
 # ---------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("kw,match", [
-    (dict(n_pairs=0), "n_pairs"),
-    (dict(distributions=("stiff",)), "distributions"),
-    (dict(distributions=()), "distributions"),
-    (dict(shapes="hexagon"), "shapes"),
-    (dict(vertices=(2,)), "vertices"),
-    (dict(dtype="float16"), "dtype"),
-    (dict(fcl=2.0), "fcl"),
-    (dict(lp_samples=-1), "lp_samples"),
-    (dict(chunk_size=0), "chunk_size"),
-    (dict(workers=0), "workers"),
-    (dict(stiff="yes"), "stiff"),
-    (dict(seed=-1), "seed"),
-])
+@pytest.mark.parametrize(
+    "kw,match",
+    [
+        (dict(n_pairs=0), "n_pairs"),
+        (dict(distributions=("stiff",)), "distributions"),
+        (dict(distributions=()), "distributions"),
+        (dict(shapes="hexagon"), "shapes"),
+        (dict(vertices=(2,)), "vertices"),
+        (dict(dtype="float16"), "dtype"),
+        (dict(fcl=2.0), "fcl"),
+        (dict(lp_samples=-1), "lp_samples"),
+        (dict(chunk_size=0), "chunk_size"),
+        (dict(workers=0), "workers"),
+        (dict(stiff="yes"), "stiff"),
+        (dict(seed=-1), "seed"),
+    ],
+)
 def test_bad_arguments(kw, match):
     kw = {"n_pairs": 10, **kw}
     with pytest.raises(ValueError, match=match):
@@ -298,8 +314,9 @@ def test_stiff_hook(tmp_path, monkeypatch):
     fake = types.ModuleType("prismbatch.lab.stiff")
     fake.run_stiff_suite = run_stiff_suite
     monkeypatch.setitem(sys.modules, "prismbatch.lab.stiff", fake)
-    r = V.validate(50, distributions=("facing",), vertices=(5,), fcl=False, lp_samples=0, stiff="quick",
-                   seed=4, progress=False)
+    r = V.validate(
+        50, distributions=("facing",), vertices=(5,), fcl=False, lp_samples=0, stiff="quick", seed=4, progress=False
+    )
     assert calls == [(True, 4)]
     assert "stiff: fake summary" in V.format_validation(r)
     paths = V.write_validation(r, tmp_path)

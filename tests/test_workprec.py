@@ -13,10 +13,19 @@ import numpy as np
 import pytest
 
 from prismbatch.lab.exact import margin_lp, point_in_prism_residual, polygon_halfplanes
+from prismbatch.lab.workprec import (
+    METHODS,
+    fit_order,
+    format_work_precision,
+    geometric_error,
+    near_contact_poses,
+    noise_floor,
+    run_work_precision,
+    vertices_needed,
+    wilson_interval,
+    write_work_precision,
+)
 from prismbatch.shapes import Prism
-from prismbatch.lab.workprec import (METHODS, fit_order, format_work_precision, geometric_error,
-                                 near_contact_poses, noise_floor, run_work_precision, vertices_needed,
-                                 wilson_interval, write_work_precision)
 
 VERTS = (8, 128, 10000)
 N_POSES = 3000
@@ -35,8 +44,9 @@ def _b_vertices_world(P, xy):
 def _pb_tolerance(P, rtol, eps, ra=1.0, rb=1.25):
     """README's pair tolerance, written out here (regular polygons: centre = local origin)."""
     ca, cb = P.pos_a, P.pos_b
-    return (rtol * (ra + rb + np.linalg.norm(cb - ca, axis=1))
-            + 4 * eps * (np.linalg.norm(ca, axis=1) + np.linalg.norm(cb, axis=1)))
+    return rtol * (ra + rb + np.linalg.norm(cb - ca, axis=1)) + 4 * eps * (
+        np.linalg.norm(ca, axis=1) + np.linalg.norm(cb, axis=1)
+    )
 
 
 def test_labels_exact_from_the_cylinder_geometry():
@@ -47,7 +57,7 @@ def test_labels_exact_from_the_cylinder_geometry():
     u = P.u
     assert np.allclose(np.linalg.norm(u, axis=1), 1.0)
     assert np.all(np.sum(u * d_a, axis=1) < -0.17)  # finite support, away from edge-on
-    assert np.all(np.sum(u * d_b, axis=1) > 0.49)   # b's body leaves in +u: its lowest point is on the end face
+    assert np.all(np.sum(u * d_b, axis=1) > 0.49)  # b's body leaves in +u: its lowest point is on the end face
     # the cylinder's support value in u, by brute force over its rim (its body recedes: u . d_a < 0)
     th = np.linspace(0, 2 * np.pi, 10001)
     u_loc = np.einsum("nji,nj->ni", P.rot_a, u)
@@ -110,8 +120,8 @@ def test_prismbatch_float64_keeps_its_contract_and_is_right_away_from_the_band(r
         depth = -np.maximum(-v[:, 2], np.max(v[:, :2] @ nrm.T - h, axis=1))
         for m in ("pb64_batch", "pb64_pair"):
             h = result.predictions[(m, n)]
-            assert np.all(h[depth > tol]), (m, n)               # b's vertex inside the n-gon: must hit
-            assert not np.any(h[P.gap > 2 * tol]), (m, n)       # a true gap beyond 2 tol: must miss
+            assert np.all(h[depth > tol]), (m, n)  # b's vertex inside the n-gon: must hit
+            assert not np.any(h[P.gap > 2 * tol]), (m, n)  # a true gap beyond 2 tol: must miss
     # the large n-gon: every label right once |g| is well above its geometric error (4.9e-8 r)
     h = result.predictions[("pb64_batch", 10000)]
     far = np.abs(P.gap) > 1e-6
@@ -171,7 +181,7 @@ def test_geometric_error_order_and_vertices_needed(result):
     assert g["order"] == pytest.approx(2.0, abs=0.01)
     n = np.array([8, 100, 3600, 100000])
     assert np.allclose(geometric_error(n), 1 - np.cos(np.pi / n), rtol=1e-6)
-    p, c = fit_order(n, 3.0 * n ** -1.5)
+    p, c = fit_order(n, 3.0 * n**-1.5)
     assert p == pytest.approx(1.5) and c == pytest.approx(3.0)
     for e in (1e-2, 1e-6, 3e-9):
         k = vertices_needed(e)
@@ -190,8 +200,12 @@ def test_files_written(result, tmp_path):
     assert meta["fitted_order"] == pytest.approx(result.geometry["order"])
     assert meta["seeds"]["poses"] == 3 and meta["versions"]["prismbatch"]
     names = sorted(p.split("/")[-1] for p in paths["figures"])
-    assert names == ["workprec_error_vs_n.png", "workprec_error_vs_n.svg",
-                     "workprec_error_vs_time.png", "workprec_error_vs_time.svg"]
+    assert names == [
+        "workprec_error_vs_n.png",
+        "workprec_error_vs_n.svg",
+        "workprec_error_vs_time.png",
+        "workprec_error_vs_time.svg",
+    ]
     assert all((tmp_path / f).stat().st_size > 10_000 for f in names)
     text = "\n".join(format_work_precision(result))
     assert "fitted order" in text and "fcl_cylinder" in text

@@ -22,9 +22,34 @@ from .projection import T_P, T_R, T_TOL, pair_test
 # error_model="numpy": with Python's ZeroDivisionError check on 1 / det the
 # facing-pose benchmark measured ~20% slower per pair; det ~ 1 here.
 @jit(error_model="numpy")
-def pair_world(avx, avy, aeang, aetab, avang, ainv, aoff, arad, acen, ka,
-               bvx, bvy, beang, betab, boff, brad, bcen, kb,
-               Pa, Ra, Pb, Rb, rtol, atol, eps, trace):
+def pair_world(
+    avx,
+    avy,
+    aeang,
+    aetab,
+    avang,
+    ainv,
+    aoff,
+    arad,
+    acen,
+    ka,
+    bvx,
+    bvy,
+    beang,
+    betab,
+    boff,
+    brad,
+    bcen,
+    kb,
+    Pa,
+    Ra,
+    Pb,
+    Rb,
+    rtol,
+    atol,
+    eps,
+    trace,
+):
     """One pair from world poses: (hit, case, contact x, y, z in world).
 
     Shapes ka of set a and kb of set b; Pa (3,), Ra (3, 3) etc. ``trace``:
@@ -91,9 +116,13 @@ def pair_world(avx, avy, aeang, aetab, avang, ainv, aoff, arad, acen, ka,
     rb = brad[kb]
     # Scale-aware tolerance: rounding grows with the sizes involved, and
     # the world positions themselves are only known to eps |c|.
-    tol = (atol + rtol * (ra + rb + math.sqrt(px * px + py * py + pz * pz))
-           + 4.0 * eps * (math.sqrt(ox * ox + oy * oy + oz * oz)
-                          + math.sqrt((dx + ox) ** 2 + (dy + oy) ** 2 + (dz + oz) ** 2)))
+    tol = (
+        atol
+        + rtol * (ra + rb + math.sqrt(px * px + py * py + pz * pz))
+        + 4.0
+        * eps
+        * (math.sqrt(ox * ox + oy * oy + oz * oz) + math.sqrt((dx + ox) ** 2 + (dy + oy) ** 2 + (dz + oz) ** 2))
+    )
     sa = aoff[ka]
     na = aoff[ka + 1] - sa
     sb = boff[kb]
@@ -105,21 +134,79 @@ def pair_world(avx, avy, aeang, aetab, avang, ainv, aoff, arad, acen, ka,
         for j, v in enumerate((r00, r01, r02, r10, r11, r12, r20, r21, r22)):
             trace[T_R + j] = v
     hit, case, cx, cy, cz = pair_test(
-        avx, avy, aeang, aetab, avang, ainv, sa, na, ra,
-        bvx, bvy, beang, betab, sb, nb, rb,
-        px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22, tol, trace)
+        avx,
+        avy,
+        aeang,
+        aetab,
+        avang,
+        ainv,
+        sa,
+        na,
+        ra,
+        bvx,
+        bvy,
+        beang,
+        betab,
+        sb,
+        nb,
+        rb,
+        px,
+        py,
+        pz,
+        r00,
+        r01,
+        r02,
+        r10,
+        r11,
+        r12,
+        r20,
+        r21,
+        r22,
+        tol,
+        trace,
+    )
     if not hit:
         return False, case, math.nan, math.nan, math.nan
-    return (True, case,
-            ox + Ra[0, 0] * cx + Ra[0, 1] * cy + Ra[0, 2] * cz,
-            oy + Ra[1, 0] * cx + Ra[1, 1] * cy + Ra[1, 2] * cz,
-            oz + Ra[2, 0] * cx + Ra[2, 1] * cy + Ra[2, 2] * cz)
+    return (
+        True,
+        case,
+        ox + Ra[0, 0] * cx + Ra[0, 1] * cy + Ra[0, 2] * cz,
+        oy + Ra[1, 0] * cx + Ra[1, 1] * cy + Ra[1, 2] * cz,
+        oz + Ra[2, 0] * cx + Ra[2, 1] * cy + Ra[2, 2] * cz,
+    )
 
 
-def _collide_loop(avx, avy, aeang, aetab, avang, ainv, aoff, arad, acen,
-                  bvx, bvy, beang, betab, bvang, binv, boff, brad, bcen,
-                  pos_a, rot_a, pos_b, rot_b, rtol, atol, eps, want_contact,
-                  hit_out, case_out, contact_out):
+def _collide_loop(
+    avx,
+    avy,
+    aeang,
+    aetab,
+    avang,
+    ainv,
+    aoff,
+    arad,
+    acen,
+    bvx,
+    bvy,
+    beang,
+    betab,
+    bvang,
+    binv,
+    boff,
+    brad,
+    bcen,
+    pos_a,
+    rot_a,
+    pos_b,
+    rot_b,
+    rtol,
+    atol,
+    eps,
+    want_contact,
+    hit_out,
+    case_out,
+    contact_out,
+):
     n = hit_out.shape[0]
     npa = pos_a.shape[0]
     nra = rot_a.shape[0]
@@ -132,10 +219,33 @@ def _collide_loop(avx, avy, aeang, aetab, avang, ainv, aoff, arad, acen,
         i = np.int64(ip)
         # A batch of one broadcasts: min() picks row 0 (sizes are 1 or n).
         hit, case, cx, cy, cz = pair_world(
-            avx, avy, aeang, aetab, avang, ainv, aoff, arad, acen, min(i, nsa - 1),
-            bvx, bvy, beang, betab, boff, brad, bcen, min(i, nsb - 1),
-            pos_a[min(i, npa - 1)], rot_a[min(i, nra - 1)], pos_b[min(i, npb - 1)], rot_b[min(i, nrb - 1)],
-            rtol, atol, eps, None)
+            avx,
+            avy,
+            aeang,
+            aetab,
+            avang,
+            ainv,
+            aoff,
+            arad,
+            acen,
+            min(i, nsa - 1),
+            bvx,
+            bvy,
+            beang,
+            betab,
+            boff,
+            brad,
+            bcen,
+            min(i, nsb - 1),
+            pos_a[min(i, npa - 1)],
+            rot_a[min(i, nra - 1)],
+            pos_b[min(i, npb - 1)],
+            rot_b[min(i, nrb - 1)],
+            rtol,
+            atol,
+            eps,
+            None,
+        )
         hit_out[i] = hit
         case_out[i] = case
         if want_contact:
@@ -180,9 +290,12 @@ def use_parallel(parallel, n):
     if parallel and _threads["forked_after_omp"]:
         if not _threads["warned"]:
             _threads["warned"] = True
-            print("prismbatch: this process was forked after a parallel call under GNU OpenMP, which cannot "
-                  "start threads in a forked child; running serially (use the 'spawn' start method, or "
-                  "`pip install tbb` with NUMBA_THREADING_LAYER=tbb, for parallel children)", file=sys.stderr)
+            print(
+                "prismbatch: this process was forked after a parallel call under GNU OpenMP, which cannot "
+                "start threads in a forked child; running serially (use the 'spawn' start method, or "
+                "`pip install tbb` with NUMBA_THREADING_LAYER=tbb, for parallel children)",
+                file=sys.stderr,
+            )
         return False
     if parallel:
         _threads["used"] = True
@@ -199,8 +312,7 @@ def pair_fields(s):
     return s.vx, s.vy, s.edge_angle, s.edge_table, s.offsets, s.radius, s.centre
 
 
-def run(a_arrays, b_arrays, pos_a, rot_a, pos_b, rot_b, n, rtol, atol,
-        want_contact, parallel):
+def run(a_arrays, b_arrays, pos_a, rot_a, pos_b, rot_b, n, rtol, atol, want_contact, parallel):
     """Allocate outputs and call the serial or parallel kernel (None: by batch size)."""
     parallel = use_parallel(parallel, n)
     hit = np.empty(n, dtype=np.bool_)
@@ -208,15 +320,55 @@ def run(a_arrays, b_arrays, pos_a, rot_a, pos_b, rot_b, n, rtol, atol,
     # A status-only call gets a (0, 3) placeholder: no memory, no writes.
     contact = np.empty((n if want_contact else 0, 3), dtype=pos_a.dtype)
     kern = collide_parallel if parallel else collide_serial
-    kern(*all_fields(a_arrays), *all_fields(b_arrays), pos_a, rot_a, pos_b, rot_b,
-         rtol, atol, float(np.finfo(pos_a.dtype).eps), want_contact, hit, case, contact)
+    kern(
+        *all_fields(a_arrays),
+        *all_fields(b_arrays),
+        pos_a,
+        rot_a,
+        pos_b,
+        rot_b,
+        rtol,
+        atol,
+        float(np.finfo(pos_a.dtype).eps),
+        want_contact,
+        hit,
+        case,
+        contact,
+    )
     return hit, case, contact
 
 
 @jit
-def collide_pair(avx, avy, aeang, aetab, avang, ainv, aoff, arad, acen,
-                 bvx, bvy, beang, betab, bvang, binv, boff, brad, bcen,
-                 Pa, Ra, Pb, Rb, rtol, atol, eps, ortho_tol_a, ortho_tol_b, max_magnitude):
+def collide_pair(
+    avx,
+    avy,
+    aeang,
+    aetab,
+    avang,
+    ainv,
+    aoff,
+    arad,
+    acen,
+    bvx,
+    bvy,
+    beang,
+    betab,
+    bvang,
+    binv,
+    boff,
+    brad,
+    bcen,
+    Pa,
+    Ra,
+    Pb,
+    Rb,
+    rtol,
+    atol,
+    eps,
+    ortho_tol_a,
+    ortho_tol_b,
+    max_magnitude,
+):
     """One pair, with its input checks compiled in (the low-latency path).
 
     Returns (problem, value, hit, case, cx, cy, cz). ``problem`` 0 means the
@@ -232,7 +384,32 @@ def collide_pair(avx, avy, aeang, aetab, avang, ainv, aoff, arad, acen,
         _, kind, val = first_bad_rotation(R.reshape((1, 3, 3)), ortho_tol)
         if kind != 0:
             return 1 + kind + 4 * k, val, False, 0, nan, nan, nan
-    hit, case, cx, cy, cz = pair_world(avx, avy, aeang, aetab, avang, ainv, aoff, arad, acen, 0,
-                                       bvx, bvy, beang, betab, boff, brad, bcen, 0,
-                                       Pa, Ra, Pb, Rb, rtol, atol, eps, None)
+    hit, case, cx, cy, cz = pair_world(
+        avx,
+        avy,
+        aeang,
+        aetab,
+        avang,
+        ainv,
+        aoff,
+        arad,
+        acen,
+        0,
+        bvx,
+        bvy,
+        beang,
+        betab,
+        boff,
+        brad,
+        bcen,
+        0,
+        Pa,
+        Ra,
+        Pb,
+        Rb,
+        rtol,
+        atol,
+        eps,
+        None,
+    )
     return 0, 0.0, hit, case, cx, cy, cz

@@ -28,9 +28,11 @@ def first_bad_rotation(Rb, tol):
                 err = max(err, abs(g))
         if err > tol:
             return i, 2, err
-        det = (R[0, 0] * (R[1, 1] * R[2, 2] - R[1, 2] * R[2, 1])
-               - R[0, 1] * (R[1, 0] * R[2, 2] - R[1, 2] * R[2, 0])
-               + R[0, 2] * (R[1, 0] * R[2, 1] - R[1, 1] * R[2, 0]))
+        det = (
+            R[0, 0] * (R[1, 1] * R[2, 2] - R[1, 2] * R[2, 1])
+            - R[0, 1] * (R[1, 0] * R[2, 2] - R[1, 2] * R[2, 0])
+            + R[0, 2] * (R[1, 0] * R[2, 1] - R[1, 1] * R[2, 0])
+        )
         if det <= 0.0:
             return i, 3, det
     return -1, 0, 0.0

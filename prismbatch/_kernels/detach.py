@@ -19,7 +19,6 @@ NOT_ON_A = -1
 EPS64 = float(np.finfo(np.float64).eps)
 
 
-
 @jit(inline="always")
 def seg_dist(px, py, x0, y0, x1, y1):
     """Distance from p to segment [x0, x1] and the segment parameter in [0, 1]."""
@@ -37,8 +36,7 @@ def outward_normal(Ra, ex, ey):
     en = math.hypot(ex, ey)
     nlx = ey / en
     nly = -ex / en
-    return (Ra[0, 0] * nlx + Ra[0, 1] * nly, Ra[1, 0] * nlx + Ra[1, 1] * nly,
-            Ra[2, 0] * nlx + Ra[2, 1] * nly)
+    return (Ra[0, 0] * nlx + Ra[0, 1] * nly, Ra[1, 0] * nlx + Ra[1, 1] * nly, Ra[2, 0] * nlx + Ra[2, 1] * nly)
 
 
 @jit(inline="always")
@@ -71,8 +69,9 @@ def outward_dir(nx, ny, nz, ex, ey, ez, dbx, dby, dbz, dax, day, daz):
     return cx / cn, cy / cn, cz / cn
 
 
-def detach_loop(avx, avy, avang, ainv, aoff, arad, acen, pos_a, rot_a, rot_b, contact, tol,
-                   cls_out, dir_out, depth_out):
+def detach_loop(
+    avx, avy, avang, ainv, aoff, arad, acen, pos_a, rot_a, rot_b, contact, tol, cls_out, dir_out, depth_out
+):
     n = cls_out.shape[0]
     nsa = aoff.shape[0] - 1
     npa = pos_a.shape[0]
@@ -131,8 +130,11 @@ def detach_loop(avx, avy, avang, ainv, aoff, arad, acen, pos_a, rot_a, rot_b, co
         # wedge edge line bounds the distance from below), by more than t plus
         # a margin that holds every contact collide returns (within 2 of its
         # own tolerances, and the rounding of far coordinates).
-        far = t + NOT_A_CONTACT_RTOL * arad[ka] + 8.0 * EPS64 * (
-            abs(contact[i, 0]) + abs(contact[i, 1]) + abs(contact[i, 2]) + abs(ox) + abs(oy) + abs(oz))
+        far = (
+            t
+            + NOT_A_CONTACT_RTOL * arad[ka]
+            + 8.0 * EPS64 * (abs(contact[i, 0]) + abs(contact[i, 1]) + abs(contact[i, 2]) + abs(ox) + abs(oy) + abs(oz))
+        )
         if z < -far or point_polygon_distance(avx, avy, avang, ainv, s, m, x, y) < -far:
             cls_out[i] = NOT_ON_A
             dir_out[i, 0] = math.nan
@@ -175,8 +177,9 @@ def detach_loop(avx, avy, avang, ainv, aoff, arad, acen, pos_a, rot_a, rot_b, co
             jmin = 0
             for j in range(m):
                 j1 = (j + 1) % m
-                d = ((avx[s + j1] - avx[s + j]) * (y - avy[s + j])
-                     - (avy[s + j1] - avy[s + j]) * (x - avx[s + j])) * ainv[s + j]
+                d = (
+                    (avx[s + j1] - avx[s + j]) * (y - avy[s + j]) - (avy[s + j1] - avy[s + j]) * (x - avx[s + j])
+                ) * ainv[s + j]
                 if d < dmin:
                     dmin = d
                     jmin = j

@@ -28,6 +28,7 @@ def jit(func=None, **options):
     Usable as ``@jit`` or ``@jit(inline="always")``. No ``fastmath``: the
     kernels rely on NaN and inf behaving as IEEE says.
     """
+
     def compile_(f):
         if _cache["ok"] is not False:
             try:
@@ -36,8 +37,11 @@ def jit(func=None, **options):
                 if "locator" not in str(exc):
                     raise
                 _cache["ok"] = False
-                print(f"prismbatch: Numba cannot write its cache ({exc}); compiling without it "
-                      f"(set NUMBA_CACHE_DIR to a writable folder to keep compiled kernels)", file=sys.stderr)
+                print(
+                    f"prismbatch: Numba cannot write its cache ({exc}); compiling without it "
+                    f"(set NUMBA_CACHE_DIR to a writable folder to keep compiled kernels)",
+                    file=sys.stderr,
+                )
             else:
                 _cache["ok"] = True
                 return out
@@ -55,8 +59,10 @@ def twins(loop, name, **options):
     under one name the twins would overwrite each other's cache entry and
     one would silently run as the other.
     """
-    return (jit(parallel=False, **options)(_renamed(loop, name + "_serial")),
-            jit(parallel=True, **options)(_renamed(loop, name + "_parallel")))
+    return (
+        jit(parallel=False, **options)(_renamed(loop, name + "_serial")),
+        jit(parallel=True, **options)(_renamed(loop, name + "_parallel")),
+    )
 
 
 def _renamed(func, name):

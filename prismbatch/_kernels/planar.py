@@ -323,8 +323,15 @@ def _seg_closest(p, q):
 def _mix(p, q, lam):
     """(1 - lam) p + lam q, entry-wise."""
     m = 1.0 - lam
-    return (m * p[0] + lam * q[0], m * p[1] + lam * q[1], m * p[2] + lam * q[2], m * p[3] + lam * q[3],
-            m * p[4] + lam * q[4], m * p[5] + lam * q[5], m * p[6] + lam * q[6])
+    return (
+        m * p[0] + lam * q[0],
+        m * p[1] + lam * q[1],
+        m * p[2] + lam * q[2],
+        m * p[3] + lam * q[3],
+        m * p[4] + lam * q[4],
+        m * p[5] + lam * q[5],
+        m * p[6] + lam * q[6],
+    )
 
 
 @jit
@@ -387,15 +394,22 @@ def gjk(avx, avy, aeang, aetab, sa, na, bvx, bvy, beang, betab, sb, nb, sp, tol)
             c0 = p1[0] * pn[1] - p1[1] * pn[0]  # weight of p0 (times s_)
             c1 = pn[0] * p0[1] - pn[1] * p0[0]  # weight of p1
             c2 = p0[0] * p1[1] - p0[1] * p1[0]  # weight of pn
-            if s_ != 0.0 and ((s_ > 0.0 and c0 >= 0.0 and c1 >= 0.0 and c2 >= 0.0)
-                              or (s_ < 0.0 and c0 <= 0.0 and c1 <= 0.0 and c2 <= 0.0)):
+            if s_ != 0.0 and (
+                (s_ > 0.0 and c0 >= 0.0 and c1 >= 0.0 and c2 >= 0.0)
+                or (s_ < 0.0 and c0 <= 0.0 and c1 <= 0.0 and c2 <= 0.0)
+            ):
                 l0 = c0 / s_
                 l1 = c1 / s_
                 l2 = 1.0 - l0 - l1
-                return (True, it,
-                        l0 * p0[2] + l1 * p1[2] + l2 * pn[2], l0 * p0[3] + l1 * p1[3] + l2 * pn[3],
-                        l0 * p0[4] + l1 * p1[4] + l2 * pn[4], l0 * p0[5] + l1 * p1[5] + l2 * pn[5],
-                        l0 * p0[6] + l1 * p1[6] + l2 * pn[6])
+                return (
+                    True,
+                    it,
+                    l0 * p0[2] + l1 * p1[2] + l2 * pn[2],
+                    l0 * p0[3] + l1 * p1[3] + l2 * pn[3],
+                    l0 * p0[4] + l1 * p1[4] + l2 * pn[4],
+                    l0 * p0[5] + l1 * p1[5] + l2 * pn[5],
+                    l0 * p0[6] + l1 * p1[6] + l2 * pn[6],
+                )
             # Otherwise the closest point lies on an edge through the new point.
             ax0, ay0, la = _seg_closest(p0, pn)
             ax1, ay1, lb = _seg_closest(p1, pn)

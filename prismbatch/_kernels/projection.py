@@ -51,29 +51,64 @@ CASES = {
     8: "perpendicular axes, an edge on a's plane: unbounded strip vs polygon",
     9: "perpendicular axes, b reaches below a's plane (Δ3 > 0; the paper's text says Δ3 < 0): strip vs polygon",
     10: "added: d_a.d_b > 0 and b's end face does not enter a's half-space (Δ3 <= 0), but b's body "
-        "comes back through a's plane: cross-section swept along the projected axis vs polygon",
+    "comes back through a's plane: cross-section swept along the projected axis vs polygon",
     11: "added: d_a.d_b > 0 and b's end face enters a's half-space (Δ3 > 0): unbounded projection "
-        "(end-face part, cross-section and sweep) vs polygon",
+    "(end-face part, cross-section and sweep) vs polygon",
 }
 
 # --- step-by-step trace (used by `prismbatch replay`; the batch kernels pass
 # None, which compiles every trace write away) ---
 TRACE_FIELDS = (
-    "tol", "p_x", "p_y", "p_z", "R00", "R01", "R02", "R10", "R11", "R12", "R20", "R21", "R22",
-    "exit", "i_top", "delta3", "lateral_offset", "axis_xy_length", "reach_T", "height_drift", "perpendicular",
-    "c_used", "height_tol", "near_top_vertices", "coarse_across", "coarse_along", "coarse_margin",
-    "coarse_facing_lhs", "coarse_facing_rhs", "top_vertex_depth_in_Pa", "i_bottom", "gjk_hit", "gjk_iterations",
-    "case", "hit",
+    "tol",
+    "p_x",
+    "p_y",
+    "p_z",
+    "R00",
+    "R01",
+    "R02",
+    "R10",
+    "R11",
+    "R12",
+    "R20",
+    "R21",
+    "R22",
+    "exit",
+    "i_top",
+    "delta3",
+    "lateral_offset",
+    "axis_xy_length",
+    "reach_T",
+    "height_drift",
+    "perpendicular",
+    "c_used",
+    "height_tol",
+    "near_top_vertices",
+    "coarse_across",
+    "coarse_along",
+    "coarse_margin",
+    "coarse_facing_lhs",
+    "coarse_facing_rhs",
+    "top_vertex_depth_in_Pa",
+    "i_bottom",
+    "gjk_hit",
+    "gjk_iterations",
+    "case",
+    "hit",
 )
 TRACE_SIZE = len(TRACE_FIELDS)
 _T = {name: k for k, name in enumerate(TRACE_FIELDS)}
 T_TOL, T_P, T_R, T_EXIT = _T["tol"], _T["p_x"], _T["R00"], _T["exit"]
-T_ITOP, T_D3, T_PR, T_WN, T_REACH, T_DRIFT = (_T[k] for k in ("i_top", "delta3", "lateral_offset",
-                                                              "axis_xy_length", "reach_T", "height_drift"))
+T_ITOP, T_D3, T_PR, T_WN, T_REACH, T_DRIFT = (
+    _T[k] for k in ("i_top", "delta3", "lateral_offset", "axis_xy_length", "reach_T", "height_drift")
+)
 T_PERP, T_CEFF, T_TZ, T_NTOP = _T["perpendicular"], _T["c_used"], _T["height_tol"], _T["near_top_vertices"]
 T_ACROSS, T_ALONG, T_MARGIN = _T["coarse_across"], _T["coarse_along"], _T["coarse_margin"]
-T_FACE_L, T_FACE_R, T_EARLY, T_IBOT = (_T["coarse_facing_lhs"], _T["coarse_facing_rhs"],
-                                       _T["top_vertex_depth_in_Pa"], _T["i_bottom"])
+T_FACE_L, T_FACE_R, T_EARLY, T_IBOT = (
+    _T["coarse_facing_lhs"],
+    _T["coarse_facing_rhs"],
+    _T["top_vertex_depth_in_Pa"],
+    _T["i_bottom"],
+)
 T_GJK_HIT, T_GJK_IT, T_CASE, T_HIT = _T["gjk_hit"], _T["gjk_iterations"], _T["case"], _T["hit"]
 
 #: Where pair_test decided (trace field "exit").
@@ -114,9 +149,38 @@ def _near_top_count(bvx, bvy, sb, nb, hx, hy, imax, zmax_h, tol):
 
 
 @jit
-def pair_test(avx, avy, aeang, aetab, avang, ainv, sa, na, ra,
-              bvx, bvy, beang, betab, sb, nb, rb,
-              px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22, tol, trace):
+def pair_test(
+    avx,
+    avy,
+    aeang,
+    aetab,
+    avang,
+    ainv,
+    sa,
+    na,
+    ra,
+    bvx,
+    bvy,
+    beang,
+    betab,
+    sb,
+    nb,
+    rb,
+    px,
+    py,
+    pz,
+    r00,
+    r01,
+    r02,
+    r10,
+    r11,
+    r12,
+    r20,
+    r21,
+    r22,
+    tol,
+    trace,
+):
     """Collision test for one pair in a's centred frame.
 
     Returns (hit, case, cx, cy, cz): the case number and, on a hit, a contact

@@ -79,12 +79,16 @@ class _Polygon:
         bis = self.normal + np.roll(self.normal, 1, axis=0)
         bis /= np.hypot(bis[:, 0], bis[:, 1])[:, None]
         self.bisector = bis
-        self.vdrop = np.minimum(np.einsum("ij,ij->i", bis, q - np.roll(q, 1, axis=0)),
-                                np.einsum("ij,ij->i", bis, q - np.roll(q, -1, axis=0)))
+        self.vdrop = np.minimum(
+            np.einsum("ij,ij->i", bis, q - np.roll(q, 1, axis=0)),
+            np.einsum("ij,ij->i", bis, q - np.roll(q, -1, axis=0)),
+        )
         # Edge i along its normal: both ends on top, the next vertices lower by `edrop`.
         n = self.normal
-        self.edrop = np.minimum(np.einsum("ij,ij->i", n, q - np.roll(q, 1, axis=0)),
-                                np.einsum("ij,ij->i", n, np.roll(q, -1, axis=0) - np.roll(q, -2, axis=0)))
+        self.edrop = np.minimum(
+            np.einsum("ij,ij->i", n, q - np.roll(q, 1, axis=0)),
+            np.einsum("ij,ij->i", n, np.roll(q, -1, axis=0) - np.roll(q, -2, axis=0)),
+        )
 
     def interior_points(self, k, rng, depth=0.95):
         """``k`` random points strictly inside the centred polygon (area-uniform in each ray)."""
@@ -94,7 +98,7 @@ class _Polygon:
         inv = np.empty(k)
         step = max(1, 2_000_000 // self.m)
         for s in range(0, k, step):
-            inv[s:s + step] = np.max(d[s:s + step] @ (self.normal / self.offset[:, None]).T, axis=1)
+            inv[s : s + step] = np.max(d[s : s + step] @ (self.normal / self.offset[:, None]).T, axis=1)
         rho = depth * np.sqrt(rng.uniform(0.0, 1.0, k)) / inv
         return d * rho[:, None]
 
@@ -109,9 +113,9 @@ class _Polygon:
         val = np.empty(k)
         step = max(1, 2_000_000 // self.m)
         for s in range(0, k, step):
-            z = self.heights(h[s:s + step])
-            idx[s:s + step] = np.argmax(z, axis=1)
-            val[s:s + step] = z[np.arange(len(z)), idx[s:s + step]]
+            z = self.heights(h[s : s + step])
+            idx[s : s + step] = np.argmax(z, axis=1)
+            val[s : s + step] = z[np.arange(len(z)), idx[s : s + step]]
         return idx, val
 
 
@@ -225,7 +229,8 @@ class _Builder:
                         f"case_poses: case {case} cannot be constructed for shape_b: no {what} of its "
                         f"{B.m} vertices has its neighbours more than {need:.3g} off the supporting "
                         f"line (largest: {float(drop.max()):.3g}); prismbatch would count them on a's "
-                        f"plane too (e.g. collinear vertices)")
+                        f"plane too (e.g. collinear vertices)"
+                    )
             choice = ok[rng.integers(0, ok.size, k)]
             hh = dirs[choice]
             return _rotation_from_last_row(sin_t * hh[:, 0], sin_t * hh[:, 1], cz, spin), choice
@@ -343,8 +348,7 @@ class _Builder:
         uy = np.where(flat, 0.0, w[:, 1] / safe)
         ahead = rng.random(k) < 0.5
         along = np.where(ahead, rng.uniform(1.1, 3.0, k), rng.uniform(-3.0, 3.0, k)) * S
-        cross = np.where(ahead, rng.uniform(-2.0, 2.0, k),
-                         rng.choice([-1.0, 1.0], k) * rng.uniform(1.1, 3.0, k)) * S
+        cross = np.where(ahead, rng.uniform(-2.0, 2.0, k), rng.choice([-1.0, 1.0], k) * rng.uniform(1.1, 3.0, k)) * S
         return np.column_stack([along * ux - cross * uy, along * uy + cross * ux])
 
     def _out(self, G, O, p, R, a_at_origin):
@@ -354,8 +358,7 @@ class _Builder:
         return pa, ra, pb, rb
 
 
-def case_poses(case, n, shape_a, shape_b, rng=None, *, hit_fraction=0.5, world_transform=False,
-               max_rounds=40):
+def case_poses(case, n, shape_a, shape_b, rng=None, *, hit_fraction=0.5, world_transform=False, max_rounds=40):
     """Pose pairs that prismbatch classifies as a given case.
 
     Parameters
@@ -471,4 +474,5 @@ def case_poses(case, n, shape_a, shape_b, rng=None, *, hit_fraction=0.5, world_t
         f"case_poses: could not construct {todo.size} of {n} poses of case {case} "
         f"({'hit' if want[todo[0]] else 'miss'} requested for the first) after {max_rounds} rounds; "
         f"the last draw gave cases {dict(zip(vals.tolist(), cnt.tolist()))} and "
-        f"{int(got_hit.sum())} hits (shapes with {builder.A.m} and {builder.B.m} vertices)")
+        f"{int(got_hit.sum())} hits (shapes with {builder.A.m} and {builder.B.m} vertices)"
+    )

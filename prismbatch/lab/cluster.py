@@ -72,8 +72,13 @@ def run_chunks(config, specs, done, *, scheduler=None, workers=None):
     if scheduler is not None:
         client = distributed.Client(scheduler)
     else:
-        cluster = distributed.LocalCluster(n_workers=int(workers), threads_per_worker=1, processes=True,
-                                           dashboard_address=None, silence_logs=logging.ERROR)
+        cluster = distributed.LocalCluster(
+            n_workers=int(workers),
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=None,
+            silence_logs=logging.ERROR,
+        )
         client = distributed.Client(cluster)
     try:
         if scheduler is not None:
@@ -92,14 +97,25 @@ def run_chunks(config, specs, done, *, scheduler=None, workers=None):
         futures = {}
         for spec in specs:
             d, first, n = spec
-            fut = client.submit(run_chunk, config, d, first, n, threads, pure=False,
-                                key=f"prismbatch-validate-{d}-{first}-{n}-{os.getpid()}-{id(specs)}")
+            fut = client.submit(
+                run_chunk,
+                config,
+                d,
+                first,
+                n,
+                threads,
+                pure=False,
+                key=f"prismbatch-validate-{d}-{first}-{n}-{os.getpid()}-{id(specs)}",
+            )
             futures[fut] = spec
         for fut in distributed.as_completed(list(futures)):
             done(futures[fut], fut.result())
-        return {"scheduler": scheduler if scheduler is not None else "dask LocalCluster",
-                "workers": len(hosts), "numba_threads": threads,
-                "worker_warmup_s": {str(a): float(s) for a, s in warmup.items()}}
+        return {
+            "scheduler": scheduler if scheduler is not None else "dask LocalCluster",
+            "workers": len(hosts),
+            "numba_threads": threads,
+            "worker_warmup_s": {str(a): float(s) for a, s in warmup.items()},
+        }
     finally:
         client.close()
         if cluster is not None:

@@ -7,16 +7,24 @@ import time
 import numba
 import numpy as np
 
-from .report import progress as progress_bar
 from ..collide import CASES, Collider
 from ..sampling import DISTRIBUTIONS
 from ..shapes import Prism
+from .report import progress as progress_bar
 
 __all__ = ["run_demo"]
 
 
-def run_demo(n_pairs=1_000_000, n_vertices=360, distribution="facing", seed=0, chunk=250_000,
-             contact=False, parallel=True, progress=True):
+def run_demo(
+    n_pairs=1_000_000,
+    n_vertices=360,
+    distribution="facing",
+    seed=0,
+    chunk=250_000,
+    contact=False,
+    parallel=True,
+    progress=True,
+):
     """Collide ``n_pairs`` random pose pairs of the paper's scene, in chunks.
 
     a is a regular ``n_vertices``-gon of circumradius 2 and b one of
@@ -59,8 +67,15 @@ def run_demo(n_pairs=1_000_000, n_vertices=360, distribution="facing", seed=0, c
         bar.update(m)
     bar.close()
     return {
-        "n_pairs": n_pairs, "n_vertices": n_vertices, "distribution": distribution, "seed": seed,
-        "contact": contact, "threads": numba.get_num_threads() if parallel else 1,
-        "compile_s": compile_s, "run_s": run_s, "pairs_per_s": n_pairs / run_s if run_s > 0 else float("inf"),
-        "hits": hits, "case_counts": {k: int(v) for k, v in enumerate(counts) if v},
+        "n_pairs": n_pairs,
+        "n_vertices": n_vertices,
+        "distribution": distribution,
+        "seed": seed,
+        "contact": contact,
+        "threads": numba.get_num_threads() if parallel else 1,
+        "compile_s": compile_s,
+        "run_s": run_s,
+        "pairs_per_s": n_pairs / run_s if run_s > 0 else float("inf"),
+        "hits": hits,
+        "case_counts": {k: int(v) for k, v in enumerate(counts) if v},
     }

@@ -19,7 +19,18 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["polygon_ccw", "polygon_halfplanes", "margin_lp", "margin_lp_batch", "point_in_prism_residual"]
+from ..config import LP_TRUST_RTOL
+from ..geometry import halfplanes, max_radius, signed_area
+from ..geometry import point_in_prism_residual as residual
+
+__all__ = [
+    "polygon_ccw",
+    "polygon_halfplanes",
+    "margin_lp",
+    "margin_lp_batch",
+    "point_in_prism_residual",
+    "lp_trust_band",
+]
 
 
 def import_linprog():
@@ -38,11 +49,6 @@ _HIGHS_OPTIONS = {
 }
 
 
-def _signed_area(poly: np.ndarray) -> float:
-    x, y = poly[:, 0], poly[:, 1]
-    return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
-
-
 def polygon_ccw(xy) -> np.ndarray:
     """Return the polygon as a float (n, 2) array in CCW order.
 
@@ -59,7 +65,7 @@ def polygon_ccw(xy) -> np.ndarray:
         poly = poly[:-1]
     if len(poly) < 3:
         raise ValueError("polygon needs at least 3 distinct vertices")
-    area = _signed_area(poly)
+    area = signed_area(poly)
     if area == 0.0:
         raise ValueError("polygon has zero area")
     if area < 0.0:
@@ -67,30 +73,23 @@ def polygon_ccw(xy) -> np.ndarray:
     return poly
 
 
-def polygon_halfplanes(xy):
-    """Unit outward edge normals ``n`` (m, 2) and offsets ``h`` (m,) of a polygon.
+def lp_trust_band(tol, S):
+    """Half-width of the touching band in which the LP margin decides nothing: ``max(tol, LP_TRUST_RTOL * S)``.
 
-    The polygon is {q : n_i . q <= h_i for all i}.  Edges shorter than
-    1e-14 * (polygon scale) are skipped.
+    ``tol`` is prismbatch's pair tolerance and ``S`` the scene scale
+    (:func:`prismbatch.collide.pair_scale_tolerance`); outside the band the
+    LP's sign is the exact answer.
     """
-    poly = polygon_ccw(xy)
-    e = np.roll(poly, -1, axis=0) - poly
-    length = np.hypot(e[:, 0], e[:, 1])
-    scale = max(float(np.max(np.abs(poly))), 1e-300)
-    ok = length > 1e-14 * scale
-    n = np.stack([e[ok, 1], -e[ok, 0]], axis=1) / length[ok, None]
-    h = np.einsum("ij,ij->i", n, poly[ok])
-    return n, h
+    return np.maximum(tol, LP_TRUST_RTOL * np.asarray(S))
 
 
-def _max_radius(xy) -> float:
-    poly = np.asarray(xy, dtype=float).reshape(-1, 2)
-    return float(np.max(np.hypot(poly[:, 0], poly[:, 1])))
+def polygon_halfplanes(xy):
+    """Unit outward edge normals ``n`` (m, 2) and offsets ``h`` (m,) of a polygon given as the user gave it.
 
-
-# ---------------------------------------------------------------------------
-# 3D: signed margin by linear programming
-# ---------------------------------------------------------------------------
+    :func:`prismbatch.geometry.halfplanes` of :func:`polygon_ccw` (repeated
+    vertices dropped, fewer than 3 or zero area refused).
+    """
+    return halfplanes(polygon_ccw(xy))
 
 
 def _body_rows(xy, p, R, length=None):
@@ -120,8 +119,7 @@ def _body_rows(xy, p, R, length=None):
     return rows, rhs
 
 
-def margin_lp(xy_a, pos_a, rot_a, xy_b, pos_b, rot_b, *, length_a=None,
-              length_b=None) -> float:
+def margin_lp(xy_a, pos_a, rot_a, xy_b, pos_b, rot_b, *, length_a=None, length_b=None) -> float:
     """Exact signed margin between two semi-infinite prisms.
 
     ``delta* = max_{x in R^3, delta} delta`` subject to every half-space of
@@ -149,7 +147,7 @@ def margin_lp(xy_a, pos_a, rot_a, xy_b, pos_b, rot_b, *, length_a=None,
     pos_b = np.asarray(pos_b, dtype=float).reshape(3)
     rot_a = np.asarray(rot_a, dtype=float).reshape(3, 3)
     rot_b = np.asarray(rot_b, dtype=float).reshape(3, 3)
-    scale = max(_max_radius(xy_a), _max_radius(xy_b), 1e-300)
+    scale = max(max_radius(xy_a), max_radius(xy_b), 1e-300)
 
     origin = 0.5 * (pos_a + pos_b)
     Q = rot_a.T  # world -> a-frame rotation (exact for orthonormal rot_a)
@@ -179,8 +177,7 @@ def margin_lp(xy_a, pos_a, rot_a, xy_b, pos_b, rot_b, *, length_a=None,
     raise RuntimeError(f"margin_lp: HiGHS status {res.status}: {res.message}")
 
 
-def margin_lp_batch(xy_a, pos_a, rot_a, xy_b, pos_b, rot_b, *, length_a=None,
-                    length_b=None) -> np.ndarray:
+def margin_lp_batch(xy_a, pos_a, rot_a, xy_b, pos_b, rot_b, *, length_a=None, length_b=None) -> np.ndarray:
     """``margin_lp`` over N pose pairs -> (N,) float array.
 
     ``xy_a`` / ``xy_b``: one (n, 2) polygon shared by all pairs, or a list
@@ -209,22 +206,12 @@ def margin_lp_batch(xy_a, pos_a, rot_a, xy_b, pos_b, rot_b, *, length_a=None,
     la_list, lb_list = per_pair_len(length_a), per_pair_len(length_b)
     out = np.empty(N)
     for k in range(N):
-        out[k] = margin_lp(pa_list[k], pos_a[k], rot_a[k], pb_list[k], pos_b[k],
-                           rot_b[k], length_a=la_list[k], length_b=lb_list[k])
+        out[k] = margin_lp(
+            pa_list[k], pos_a[k], rot_a[k], pb_list[k], pos_b[k], rot_b[k], length_a=la_list[k], length_b=lb_list[k]
+        )
     return out
 
 
 def point_in_prism_residual(xy, pos, rot, x) -> float:
-    """Max constraint violation of world point ``x`` for one semi-infinite prism.
-
-    ``max(-t, max_i(n_i . q - h_i))`` where ``[q, t] = R^T (x - p)`` and the
-    n_i are unit outward edge normals: <= 0 inside/on the body, > 0 outside,
-    in length units (it is a lower bound on the Euclidean distance to the
-    body, exact when a single face is violated).
-    """
-    pos = np.asarray(pos, dtype=float).reshape(3)
-    rot = np.asarray(rot, dtype=float).reshape(3, 3)
-    local = rot.T @ (np.asarray(x, dtype=float).reshape(3) - pos)
-    n, h = polygon_halfplanes(xy)
-    side = n @ local[:2] - h
-    return float(max(-local[2], np.max(side)))
+    """:func:`prismbatch.geometry.point_in_prism_residual` of the polygon as given (see :func:`polygon_ccw`)."""
+    return residual(polygon_ccw(xy), pos, rot, x)

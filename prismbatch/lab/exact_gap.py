@@ -45,9 +45,11 @@ def exact_quat_matrix(q, order):
     q = [_q(v) for v in q]
     w, x, y, z = q if order == "wxyz" else (q[3], q[0], q[1], q[2])
     s = Fraction(2) / (w * w + x * x + y * y + z * z)
-    return [[1 - s * (y * y + z * z), s * (x * y - w * z), s * (x * z + w * y)],
-            [s * (x * y + w * z), 1 - s * (x * x + z * z), s * (y * z - w * x)],
-            [s * (x * z - w * y), s * (y * z + w * x), 1 - s * (x * x + y * y)]]
+    return [
+        [1 - s * (y * y + z * z), s * (x * y - w * z), s * (x * z + w * y)],
+        [s * (x * y + w * z), 1 - s * (x * x + z * z), s * (y * z - w * x)],
+        [s * (x * z - w * y), s * (y * z + w * x), 1 - s * (x * x + y * y)],
+    ]
 
 
 class _Body:
@@ -155,15 +157,32 @@ def _features(body, q, t, slack, direction=None):
             u, v = (x0, y0) if spec[1] == "v0" else (x1, y1)
             base = body.local(u, v, F0)
             gens = [] if on_end else [body.d]
-            feats.append((name + ("" if on_end else " (lateral edge)"), base, gens,
-                          (lambda s, u=u, v=v: (u, v, F0)) if on_end else (lambda s, u=u, v=v: (u, v, s[0]))))
+            feats.append(
+                (
+                    name + ("" if on_end else " (lateral edge)"),
+                    base,
+                    gens,
+                    (lambda s, u=u, v=v: (u, v, F0)) if on_end else (lambda s, u=u, v=v: (u, v, s[0])),
+                )
+            )
         else:
             base = body.local(x0, y0, F0)
             e = tuple(body.c0[i] * (x1 - x0) + body.c1[i] * (y1 - y0) for i in range(3))
             gens = [e] if on_end else [e, body.d]
-            feats.append((name + ("" if on_end else " (side face)"), base, gens,
-                          (lambda s, x0=x0, y0=y0, dx=x1 - x0, dy=y1 - y0:
-                           (x0 + s[0] * dx, y0 + s[0] * dy, s[1] if len(s) > 1 else F0))))
+            feats.append(
+                (
+                    name + ("" if on_end else " (side face)"),
+                    base,
+                    gens,
+                    (
+                        lambda s, x0=x0, y0=y0, dx=x1 - x0, dy=y1 - y0: (
+                            x0 + s[0] * dx,
+                            y0 + s[0] * dy,
+                            s[1] if len(s) > 1 else F0,
+                        )
+                    ),
+                )
+            )
     return feats
 
 
@@ -207,12 +226,15 @@ def _float_rank(A, B, cand, slack):
     G = np.array([[float(c) for c in g] for g in ga] + [[-float(c) for c in g] for g in gb]).reshape(-1, 3).T
     rhs = np.array([float(b) - float(a) for a, b in zip(ba, bb)])
     s = np.linalg.lstsq(G, rhs, rcond=None)[0] if G.shape[1] else np.zeros(0)
-    la, lb = toa(list(s[:len(ga)])), tob(list(s[len(ga):]))
+    la, lb = toa(list(s[: len(ga)])), tob(list(s[len(ga) :]))
     bad = 0.0
     for body, loc in ((A, la), (B, lb)):
         q = np.array([float(loc[0]), float(loc[1])])
-        bad = max(bad, -float(loc[2]), float(np.max((body.fnormal @ q - body.foffset)
-                                                     / np.hypot(body.fnormal[:, 0], body.fnormal[:, 1]))))
+        bad = max(
+            bad,
+            -float(loc[2]),
+            float(np.max((body.fnormal @ q - body.foffset) / np.hypot(body.fnormal[:, 0], body.fnormal[:, 1]))),
+        )
     dist = np.linalg.norm(G @ s - rhs) if G.shape[1] else np.linalg.norm(rhs)
     return (bad > 1e-12 * slack * 1e6, dist)  # slack is 1e-6 of the scene: infeasible beyond 1e-12 of it
 
@@ -251,7 +273,7 @@ def _qp(M, r, rows, x0, step):
     lp.col_lower_ = np.array([-inf, -inf, -x0[2] / step, -inf, -inf, -x0[5] / step])
     lp.col_upper_ = np.full(6, inf)
     lp.row_lower_ = np.full(len(rows), -inf)
-    lp.row_upper_ = np.array([(o - nrm @ x0[off:off + 2]) / step for off, nrm, o in rows])
+    lp.row_upper_ = np.array([(o - nrm @ x0[off : off + 2]) / step for off, nrm, o in rows])
     cols = [[] for _ in range(6)]
     for i, (off, nrm, _) in enumerate(rows):
         cols[off].append((i, nrm[0]))
@@ -291,15 +313,18 @@ def _float_closest(A, B):
     ca, cb = A.fxy.mean(axis=0), B.fxy.mean(axis=0)
     r = (B.fp + B.fR[:, :2] @ cb) - (A.fp + A.fR[:, :2] @ ca)
     scale = max(np.abs(A.fxy - ca).max(), np.abs(B.fxy - cb).max(), np.linalg.norm(r), 1e-300)
-    rows = [(off, nrm / np.hypot(*nrm), (o - nrm @ c) / np.hypot(*nrm)) for body, off, c in ((A, 0, ca), (B, 3, cb))
-            for nrm, o in zip(body.fnormal, body.foffset)]
+    rows = [
+        (off, nrm / np.hypot(*nrm), (o - nrm @ c) / np.hypot(*nrm))
+        for body, off, c in ((A, 0, ca), (B, 3, cb))
+        for nrm, o in zip(body.fnormal, body.foffset)
+    ]
     x = _qp(M, r, rows, np.zeros(6), scale)
     step = scale
     for _ in range(3):
         x[2], x[5] = max(x[2], 0.0), max(x[5], 0.0)
         resid = np.linalg.norm(M @ x - r)
         step = max(1e-3 * step, 1e-14 * scale, resid)
-        near = [(off, nrm, o) for off, nrm, o in rows if o - nrm @ x[off:off + 2] <= 1e3 * step]
+        near = [(off, nrm, o) for off, nrm, o in rows if o - nrm @ x[off : off + 2] <= 1e3 * step]
         x = _qp(M, r, near, x, step)
     return x[:2] + ca, max(x[2], 0.0), x[3:5] + cb, max(x[5], 0.0), scale
 
@@ -356,7 +381,7 @@ def gap_bounds(xy_a, pos_a, rot_a, xy_b, pos_b, rot_b):
         # free parameters take the float solution's values.
         guess = [_q(v) for v in _float_params(ba, ga, fxa)] + [_q(v) for v in _float_params(bb, gb, fxb)]
         s = _solve(Mat, rhs, guess)
-        la, lb = toa(s[:len(ga)]), tob(s[len(ga):])
+        la, lb = toa(s[: len(ga)]), tob(s[len(ga) :])
         g2 = _verify(A, B, la, lb)
         if g2 is not None:
             return Gap(g2, g2, (la, lb))
@@ -439,8 +464,9 @@ def _point_within(body, x, r2):
     rel = _sub(x, body.p)
 
     def det3(a, b, c):
-        return (a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
-                + a[2] * (b[0] * c[1] - b[1] * c[0]))
+        return (
+            a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) + a[2] * (b[0] * c[1] - b[1] * c[0])
+        )
 
     D = det3(c0, c1, d)
     u, v, t = det3(rel, c1, d) / D, det3(c0, rel, d) / D, det3(c0, c1, rel) / D
@@ -467,8 +493,11 @@ def _separated(body, x, r2):
     # Half-spaces containing the body: the end-face plane (n = -d side) and the side planes.
     rel = x
     bounds = []
-    nrm_end = tuple(-c for c in _cross(body.c0, body.c1)) if _dot(_cross(body.c0, body.c1), body.d) > 0 else \
-        _cross(body.c0, body.c1)
+    nrm_end = (
+        tuple(-c for c in _cross(body.c0, body.c1))
+        if _dot(_cross(body.c0, body.c1), body.d) > 0
+        else _cross(body.c0, body.c1)
+    )
     for nvec in [nrm_end] + [_side_normal(body, k) for k in range(body.n)]:
         top = body.support(nvec, +1)
         if top is None:

@@ -23,8 +23,8 @@ from multiprocessing import get_context
 import numpy as np
 
 from ..collide import pair_scale_tolerance
-from .families import FAMILIES, collide_family, make_family
 from ..shapes import Prism
+from .families import FAMILIES, collide_family, make_family
 
 __all__ = ["judge_family", "run_exact_check", "markdown_table", "pair_record"]
 
@@ -74,8 +74,14 @@ def judge_family(name, n, seed, *, processes=1):
     r = collide_family(ps, contact=True)
     A = [Prism(x) for x in ps.xy_a]
     B = [Prism(x) for x in ps.xy_b]
-    tols = np.array([pair_scale_tolerance(A[k], B[k], ps.pos_a[k:k + 1], ps.rot_a[k:k + 1],
-                                          ps.pos_b[k:k + 1], ps.rot_b[k:k + 1])[1][0] for k in range(n)])
+    tols = np.array(
+        [
+            pair_scale_tolerance(
+                A[k], B[k], ps.pos_a[k : k + 1], ps.rot_a[k : k + 1], ps.pos_b[k : k + 1], ps.rot_b[k : k + 1]
+            )[1][0]
+            for k in range(n)
+        ]
+    )
     chunks = np.array_split(np.arange(n), max(1, processes * 4))
     jobs = [(name, n, seed, c, r.hit[c], r.contact[c], tols[c]) for c in chunks if len(c)]
     if processes > 1:
@@ -86,10 +92,16 @@ def judge_family(name, n, seed, *, processes=1):
     verdicts = [v for _, v, _, _, _ in rows]
     contacts = [c for _, _, h, _, c in rows if h]
     return dict(
-        family=name, pairs=n, must_hit=verdicts.count("hit"), must_miss=verdicts.count("miss"),
-        band=verdicts.count("band"), unknown=verdicts.count("unknown"),
-        wrong=sum(w for _, _, _, w, _ in rows), contacts_checked=len(contacts),
-        contacts_invalid=sum(c is False for c in contacts), contacts_undecided=sum(c is None for c in contacts),
+        family=name,
+        pairs=n,
+        must_hit=verdicts.count("hit"),
+        must_miss=verdicts.count("miss"),
+        band=verdicts.count("band"),
+        unknown=verdicts.count("unknown"),
+        wrong=sum(w for _, _, _, w, _ in rows),
+        contacts_checked=len(contacts),
+        contacts_invalid=sum(c is False for c in contacts),
+        contacts_undecided=sum(c is None for c in contacts),
         seconds=time.perf_counter() - t0,
         wrong_pairs=[k for k, _, _, w, c in rows if w or c is False],
     )
@@ -98,10 +110,21 @@ def judge_family(name, n, seed, *, processes=1):
 def pair_record(ps, k, tol, said_hit, verdict):
     """One pair as a JSON-ready dict with float.hex numbers (the tests/data format)."""
     hx = lambda a: [float(v).hex() for v in np.ravel(a)]  # noqa: E731
-    rec = dict(family=ps.family, xy_a=[hx(p) for p in ps.xy_a[k]], xy_b=[hx(p) for p in ps.xy_b[k]],
-               pos_a=hx(ps.pos_a[k]), rot_a=hx(ps.rot_a[k]), pos_b=hx(ps.pos_b[k]), rot_b=hx(ps.rot_b[k]),
-               quat_a=None, quat_b=None, quat_order=None, tol=float(tol).hex(),
-               exact={"verdict": verdict}, prismbatch_said={"hit": bool(said_hit)})
+    rec = dict(
+        family=ps.family,
+        xy_a=[hx(p) for p in ps.xy_a[k]],
+        xy_b=[hx(p) for p in ps.xy_b[k]],
+        pos_a=hx(ps.pos_a[k]),
+        rot_a=hx(ps.rot_a[k]),
+        pos_b=hx(ps.pos_b[k]),
+        rot_b=hx(ps.rot_b[k]),
+        quat_a=None,
+        quat_b=None,
+        quat_order=None,
+        tol=float(tol).hex(),
+        exact={"verdict": verdict},
+        prismbatch_said={"hit": bool(said_hit)},
+    )
     if ps.form == "quat":
         rec.update(quat_a=hx(ps.call_a[k]), quat_b=hx(ps.call_b[k]), quat_order=ps.quat_order)
     return rec
@@ -109,16 +132,35 @@ def pair_record(ps, k, tol, said_hit, verdict):
 
 def markdown_table(results):
     """Per-family counts as a Markdown table."""
-    head = ("| family | pairs | must hit | must miss | in band | unknown | wrong | contacts checked | "
-            "invalid | undecided | s |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
-    rows = [f"| {r['family']} | {r['pairs']} | {r['must_hit']} | {r['must_miss']} | {r['band']} | {r['unknown']} | "
-            f"{r['wrong']} | {r['contacts_checked']} | {r['contacts_invalid']} | {r['contacts_undecided']} | "
-            f"{r['seconds']:.0f} |" for r in results]
-    tot = {k: sum(r[k] for r in results) for k in ("pairs", "must_hit", "must_miss", "band", "unknown", "wrong",
-                                                   "contacts_checked", "contacts_invalid", "contacts_undecided")}
-    rows.append(f"| **all** | {tot['pairs']} | {tot['must_hit']} | {tot['must_miss']} | {tot['band']} | "
-                f"{tot['unknown']} | {tot['wrong']} | {tot['contacts_checked']} | {tot['contacts_invalid']} | "
-                f"{tot['contacts_undecided']} | |")
+    head = (
+        "| family | pairs | must hit | must miss | in band | unknown | wrong | contacts checked | "
+        "invalid | undecided | s |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+    )
+    rows = [
+        f"| {r['family']} | {r['pairs']} | {r['must_hit']} | {r['must_miss']} | {r['band']} | {r['unknown']} | "
+        f"{r['wrong']} | {r['contacts_checked']} | {r['contacts_invalid']} | {r['contacts_undecided']} | "
+        f"{r['seconds']:.0f} |"
+        for r in results
+    ]
+    tot = {
+        k: sum(r[k] for r in results)
+        for k in (
+            "pairs",
+            "must_hit",
+            "must_miss",
+            "band",
+            "unknown",
+            "wrong",
+            "contacts_checked",
+            "contacts_invalid",
+            "contacts_undecided",
+        )
+    }
+    rows.append(
+        f"| **all** | {tot['pairs']} | {tot['must_hit']} | {tot['must_miss']} | {tot['band']} | "
+        f"{tot['unknown']} | {tot['wrong']} | {tot['contacts_checked']} | {tot['contacts_invalid']} | "
+        f"{tot['contacts_undecided']} | |"
+    )
     return "\n".join([head, *rows])
 
 
@@ -135,8 +177,10 @@ def run_exact_check(pairs_per_family, *, families=None, seed=0, processes=1, out
         res = judge_family(name, pairs_per_family, seed, processes=processes)
         results.append(res)
         if progress:
-            progress(f"{name}: {res['pairs']} pairs, wrong {res['wrong']}, in band {res['band']}, "
-                     f"unknown {res['unknown']}, invalid contacts {res['contacts_invalid']} ({res['seconds']:.0f} s)")
+            progress(
+                f"{name}: {res['pairs']} pairs, wrong {res['wrong']}, in band {res['band']}, "
+                f"unknown {res['unknown']}, invalid contacts {res['contacts_invalid']} ({res['seconds']:.0f} s)"
+            )
     if out is not None:
         _write(results, out, pairs_per_family, seed)
     return results
@@ -159,16 +203,27 @@ def _write(results, out, n, seed):
             ps = make_family(r["family"], n, seed)
             for k in r["wrong_pairs"]:
                 A, B = Prism(ps.xy_a[k]), Prism(ps.xy_b[k])
-                tol = pair_scale_tolerance(A, B, ps.pos_a[k:k + 1], ps.rot_a[k:k + 1], ps.pos_b[k:k + 1],
-                                           ps.rot_b[k:k + 1])[1][0]
-                said = bool(collide_family(ps._replace(
-                    xy_a=[ps.xy_a[k]], xy_b=[ps.xy_b[k]], pos_a=ps.pos_a[k:k + 1], rot_a=ps.rot_a[k:k + 1],
-                    pos_b=ps.pos_b[k:k + 1], rot_b=ps.rot_b[k:k + 1], call_a=_row(ps.call_a, k),
-                    call_b=_row(ps.call_b, k))).hit[0])
+                tol = pair_scale_tolerance(
+                    A, B, ps.pos_a[k : k + 1], ps.rot_a[k : k + 1], ps.pos_b[k : k + 1], ps.rot_b[k : k + 1]
+                )[1][0]
+                said = bool(
+                    collide_family(
+                        ps._replace(
+                            xy_a=[ps.xy_a[k]],
+                            xy_b=[ps.xy_b[k]],
+                            pos_a=ps.pos_a[k : k + 1],
+                            rot_a=ps.rot_a[k : k + 1],
+                            pos_b=ps.pos_b[k : k + 1],
+                            rot_b=ps.rot_b[k : k + 1],
+                            call_a=_row(ps.call_a, k),
+                            call_b=_row(ps.call_b, k),
+                        )
+                    ).hit[0]
+                )
                 wrong.append(pair_record(ps, k, tol, said, "see exact_check.json"))
     with open(os.path.join(out, "exact_check_wrong.json"), "w") as f:
         json.dump(wrong, f, indent=1)
 
 
 def _row(call, k):
-    return call[k:k + 1] if isinstance(call, np.ndarray) else call[[k]]
+    return call[k : k + 1] if isinstance(call, np.ndarray) else call[[k]]

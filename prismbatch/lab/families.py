@@ -143,9 +143,20 @@ def _quat_to_matrix(q):
     """Float rotation matrices of unit quaternions (w, x, y, z)."""
     q = q / np.linalg.norm(q, axis=1, keepdims=True)
     w, x, y, z = q.T
-    return np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
-                     2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
-                     2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], axis=1).reshape(-1, 3, 3)
+    return np.stack(
+        [
+            1 - 2 * (y * y + z * z),
+            2 * (x * y - w * z),
+            2 * (x * z + w * y),
+            2 * (x * y + w * z),
+            1 - 2 * (x * x + z * z),
+            2 * (y * z - w * x),
+            2 * (x * z - w * y),
+            2 * (y * z + w * x),
+            1 - 2 * (x * x + y * y),
+        ],
+        axis=1,
+    ).reshape(-1, 3, 3)
 
 
 # --- placement --------------------------------------------------------------
@@ -197,10 +208,21 @@ def _exact_dot(u, v):
 # --- families ---------------------------------------------------------------
 
 
-def _scene(rng, n, *, kinds=("regular", "random"), radius=(0.5, 3.0), spread=3.0, offset=0.0,
-           rot=None, near_share=0.6, scale=lambda rng: 1.0, where=lambda rng: np.zeros(3)):
+def _scene(
+    rng,
+    n,
+    *,
+    kinds=("regular", "random"),
+    radius=(0.5, 3.0),
+    spread=3.0,
+    offset=0.0,
+    rot=None,
+    near_share=0.6,
+    scale=lambda rng: 1.0,
+    where=lambda rng: np.zeros(3),
+):
     """Common body of the families: polygons, poses and near-touching placement."""
-    xa, xb, pa, ra, pb_, rb, target = [], [], [], [], [], [], []
+    xa, xb, pa, pb_, target = [], [], [], [], []
     rots = rot(n) if rot is not None else (random_rotations(n, rng), random_rotations(n, rng))
     for k in range(n):
         s = scale(rng)
@@ -229,14 +251,16 @@ def _matrix_family(name, rng, n, **kw):
 
 
 def _identical(rng, n):
-    return _matrix_family("identical_rotation", rng, n, rot=lambda m: (lambda R: (R, R.copy()))(
-        random_rotations(m, rng)))
+    return _matrix_family(
+        "identical_rotation", rng, n, rot=lambda m: (lambda R: (R, R.copy()))(random_rotations(m, rng))
+    )
 
 
 def _near_identical(rng, n):
     def rot(m):
         R = random_rotations(m, rng)
         return R, R @ _small_rotations(rng, m, 10.0 ** rng.uniform(-16, -6, m))
+
     return _matrix_family("near_identical_rotation", rng, n, rot=rot)
 
 
@@ -271,9 +295,15 @@ def _scipy(rng, n):
 
 
 FAMILIES = {
-    "facing": lambda rng, n: _matrix_family("facing", rng, n, rot=lambda m: (
-        np.broadcast_to(np.diag([1.0, -1.0, -1.0]), (m, 3, 3)).copy(),
-        _small_rotations(rng, m, rng.uniform(0, 0.3, m)))),
+    "facing": lambda rng, n: _matrix_family(
+        "facing",
+        rng,
+        n,
+        rot=lambda m: (
+            np.broadcast_to(np.diag([1.0, -1.0, -1.0]), (m, 3, 3)).copy(),
+            _small_rotations(rng, m, rng.uniform(0, 0.3, m)),
+        ),
+    ),
     "free": lambda rng, n: _matrix_family("free", rng, n),
     "identical_rotation": _identical,
     "near_identical_rotation": _near_identical,
@@ -282,10 +312,10 @@ FAMILIES = {
     "scipy_rotation": _scipy,
     "dense_collinear": lambda rng, n: _matrix_family("dense_collinear", rng, n, kinds=("dense",)),
     "far_origin": lambda rng, n: _matrix_family("far_origin", rng, n, offset=1e6),
-    "tiny_far": lambda rng, n: _matrix_family("tiny_far", rng, n, scale=lambda r: 1e-6,
-                                              where=lambda r: r.uniform(-1e6, 1e6, 3)),
-    "mixed_scales": lambda rng, n: _matrix_family("mixed_scales", rng, n,
-                                                  scale=lambda r: 10.0 ** r.uniform(-12, 12)),
+    "tiny_far": lambda rng, n: _matrix_family(
+        "tiny_far", rng, n, scale=lambda r: 1e-6, where=lambda r: r.uniform(-1e6, 1e6, 3)
+    ),
+    "mixed_scales": lambda rng, n: _matrix_family("mixed_scales", rng, n, scale=lambda r: 10.0 ** r.uniform(-12, 12)),
 }
 
 

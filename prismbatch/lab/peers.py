@@ -16,6 +16,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..geometry import centroid_radius, max_radius
+
 __all__ = [
     "fcl_standin_length",
     "standin_lengths",
@@ -59,11 +61,6 @@ def _polygon_ccw(xy) -> np.ndarray:
     return poly[::-1].copy() if area2 < 0.0 else poly.copy()
 
 
-def _max_radius(xy) -> float:
-    poly = np.asarray(xy, dtype=float).reshape(-1, 2)
-    return float(np.max(np.hypot(poly[:, 0], poly[:, 1])))
-
-
 def fcl_standin_length(xy_a, xy_b, pos_a, pos_b) -> float:
     """Finite length L standing in for a semi-infinite prism.
 
@@ -82,7 +79,7 @@ def fcl_standin_length(xy_a, xy_b, pos_a, pos_b) -> float:
     """
     pa = np.asarray(pos_a, dtype=float).reshape(3)
     pb = np.asarray(pos_b, dtype=float).reshape(3)
-    return 4.0 * (float(np.linalg.norm(pa - pb)) + _max_radius(xy_a) + _max_radius(xy_b))
+    return 4.0 * (float(np.linalg.norm(pa - pb)) + max_radius(xy_a) + max_radius(xy_b))
 
 
 class StandinLengths(NamedTuple):
@@ -91,20 +88,6 @@ class StandinLengths(NamedTuple):
     length: np.ndarray
     bound: np.ndarray
     sound: np.ndarray
-
-
-def _centre_radius(xy):
-    """Area centroid of a convex polygon and the largest vertex distance from it."""
-    poly = np.asarray(xy, dtype=float).reshape(-1, 2)
-    x0 = poly.mean(axis=0)
-    v = poly - x0
-    vn = np.roll(v, -1, axis=0)
-    cr = v[:, 0] * vn[:, 1] - vn[:, 0] * v[:, 1]
-    area2 = cr.sum()
-    if area2 == 0.0:
-        raise ValueError("polygon has zero area")
-    c = np.array([((v[:, 0] + vn[:, 0]) * cr).sum(), ((v[:, 1] + vn[:, 1]) * cr).sum()]) / (3.0 * area2) + x0
-    return c, float(np.max(np.hypot(*(poly - c).T)))
 
 
 def standin_lengths(xy_a, xy_b, pos_a, rot_a, pos_b, rot_b, *, factor=2.0, max_ratio=1e6):
@@ -164,8 +147,8 @@ def standin_lengths(xy_a, xy_b, pos_a, rot_a, pos_b, rot_b, *, factor=2.0, max_r
     if not (np.isfinite(max_ratio) and max_ratio >= 1.0):
         raise ValueError(f"max_ratio must be a finite number >= 1, got {max_ratio}")
     N, pa, ra, pb, rb = _batch_poses(pos_a, rot_a, pos_b, rot_b)
-    ca2, Ra = _centre_radius(xy_a)
-    cb2, Rb = _centre_radius(xy_b)
+    ca2, Ra = centroid_radius(xy_a)
+    cb2, Rb = centroid_radius(xy_b)
     ca = pa + ra[:, :, :2] @ ca2
     cb = pb + rb[:, :, :2] @ cb2
     S = np.linalg.norm(cb - ca, axis=1) + Ra + Rb
@@ -250,9 +233,9 @@ def coal_prism(xy, length):
         pts.append(np.asarray(v, dtype=float))
     tris = coal.StdVec_Triangle()
     for a, b, c in _cap_strip(n):
-        tris.append(coal.Triangle(a, c, b))              # bottom cap, normal -z
+        tris.append(coal.Triangle(a, c, b))  # bottom cap, normal -z
         tris.append(coal.Triangle(n + a, n + b, n + c))  # top cap, normal +z
-    for f in faces[2:]:                                  # side quads, outward
+    for f in faces[2:]:  # side quads, outward
         tris.append(coal.Triangle(int(f[0]), int(f[1]), int(f[2])))
         tris.append(coal.Triangle(int(f[0]), int(f[2]), int(f[3])))
     return coal.Convex(pts, tris)
@@ -263,8 +246,12 @@ def _batch_poses(pos_a, rot_a, pos_b, rot_b):
     pos_b = np.asarray(pos_b, dtype=float)
     rot_a = np.asarray(rot_a, dtype=float)
     rot_b = np.asarray(rot_b, dtype=float)
-    N = max(pos_a.reshape(-1, 3).shape[0], pos_b.reshape(-1, 3).shape[0],
-            rot_a.reshape(-1, 3, 3).shape[0], rot_b.reshape(-1, 3, 3).shape[0])
+    N = max(
+        pos_a.reshape(-1, 3).shape[0],
+        pos_b.reshape(-1, 3).shape[0],
+        rot_a.reshape(-1, 3, 3).shape[0],
+        rot_b.reshape(-1, 3, 3).shape[0],
+    )
     pos_a = np.broadcast_to(pos_a.reshape(-1, 3), (N, 3))
     pos_b = np.broadcast_to(pos_b.reshape(-1, 3), (N, 3))
     rot_a = np.broadcast_to(rot_a.reshape(-1, 3, 3), (N, 3, 3))
@@ -305,8 +292,7 @@ class _Peer:
         """Collide prepared pairs: per query two transforms, a fresh request/result."""
         lib = self._lib
         oa, ob = self.obj_a, self.obj_b
-        Transform, Request, Result, collide = (self._Transform, lib.CollisionRequest,
-                                               lib.CollisionResult, lib.collide)
+        Transform, Request, Result, collide = (self._Transform, lib.CollisionRequest, lib.CollisionResult, lib.collide)
         hit = self._is_collision
         out = np.empty(len(items), dtype=bool)
         for k, (ra, pa, rb, pb) in enumerate(items):

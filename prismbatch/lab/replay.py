@@ -28,23 +28,60 @@ import numpy as np
 from .._kernels.projection import CASES
 from .report import jsonable, run_metadata, write_json
 
-__all__ = ["FORMAT", "VERSION", "REQUIRED_KEYS", "make_record", "write_replay", "read_replay",
-           "replay_record", "format_trace", "replay"]
+__all__ = [
+    "FORMAT",
+    "VERSION",
+    "REQUIRED_KEYS",
+    "make_record",
+    "write_replay",
+    "read_replay",
+    "replay_record",
+    "format_trace",
+    "replay",
+]
 
 FORMAT = "prismbatch-replay"
 VERSION = 1
 
 #: Keys every record must have (others, e.g. "distribution", "block", "seed", are kept and shown).
-REQUIRED_KEYS = ("kind", "shape_a", "shape_b", "pos_a", "rot_a", "pos_b", "rot_b", "dtype", "rtol", "atol",
-                 "prismbatch", "references")
+REQUIRED_KEYS = (
+    "kind",
+    "shape_a",
+    "shape_b",
+    "pos_a",
+    "rot_a",
+    "pos_b",
+    "rot_b",
+    "dtype",
+    "rtol",
+    "atol",
+    "prismbatch",
+    "references",
+)
 
 
 def _floats(x):
     return np.asarray(x, dtype=np.float64).tolist()
 
 
-def make_record(kind, shape_a, shape_b, pos_a, rot_a, pos_b, rot_b, *, dtype="float64", rtol, atol=0.0,
-                hit, case, contact=None, references=None, **source):
+def make_record(
+    kind,
+    shape_a,
+    shape_b,
+    pos_a,
+    rot_a,
+    pos_b,
+    rot_b,
+    *,
+    dtype="float64",
+    rtol,
+    atol=0.0,
+    hit,
+    case,
+    contact=None,
+    references=None,
+    **source,
+):
     """Build one replay record (a plain dict) from arrays.
 
     Parameters
@@ -66,18 +103,33 @@ def make_record(kind, shape_a, shape_b, pos_a, rot_a, pos_b, rot_b, *, dtype="fl
         Where the pair came from (distribution, block, index, seed, spawn_key, tol, band, ...).
     """
     xy = lambda s: _floats(getattr(s, "xy", s))  # noqa: E731
-    rec = {"kind": str(kind), **source, "shape_a": xy(shape_a), "shape_b": xy(shape_b),
-           "pos_a": _floats(pos_a), "rot_a": _floats(rot_a), "pos_b": _floats(pos_b), "rot_b": _floats(rot_b),
-           "dtype": str(np.dtype(dtype)), "rtol": float(rtol), "atol": float(atol),
-           "prismbatch": {"hit": bool(hit), "case": int(case),
-                          "contact": None if contact is None else _floats(contact)},
-           "references": dict(references or {})}
+    rec = {
+        "kind": str(kind),
+        **source,
+        "shape_a": xy(shape_a),
+        "shape_b": xy(shape_b),
+        "pos_a": _floats(pos_a),
+        "rot_a": _floats(rot_a),
+        "pos_b": _floats(pos_b),
+        "rot_b": _floats(rot_b),
+        "dtype": str(np.dtype(dtype)),
+        "rtol": float(rtol),
+        "atol": float(atol),
+        "prismbatch": {"hit": bool(hit), "case": int(case), "contact": None if contact is None else _floats(contact)},
+        "references": dict(references or {}),
+    }
     return rec
 
 
 #: Number arrays of a record and their shapes (None: any length >= 1).
-_ARRAYS = (("shape_a", (None, 2)), ("shape_b", (None, 2)), ("pos_a", (3,)), ("rot_a", (3, 3)),
-           ("pos_b", (3,)), ("rot_b", (3, 3)))
+_ARRAYS = (
+    ("shape_a", (None, 2)),
+    ("shape_b", (None, 2)),
+    ("pos_a", (3,)),
+    ("rot_a", (3, 3)),
+    ("pos_b", (3,)),
+    ("rot_b", (3, 3)),
+)
 #: Optional record fields printed in a trace's head line.
 _SHOWN = ("distribution", "block", "index", "seed", "spawn_key")
 _DTYPES = ("float64", "float32")
@@ -153,7 +205,7 @@ def _check_record(rec, where):
     for k, shape in _ARRAYS:
         _numbers(rec[k], shape, f"{where}: {k}")
     if not isinstance(rec["dtype"], str) or rec["dtype"] not in _DTYPES:
-        raise ValueError(f"{where}: dtype must be \"float64\" or \"float32\", got {_short(rec['dtype'])}")
+        raise ValueError(f'{where}: dtype must be "float64" or "float32", got {_short(rec["dtype"])}')
     for k in ("rtol", "atol"):
         v = _number(rec[k], f"{where}: {k}")
         if v < 0:
@@ -162,8 +214,9 @@ def _check_record(rec, where):
     for k, t, what in (("hit", bool, "true or false"), ("case", int, "an integer")):
         _expect(saved.get(k), t, f"{where}: prismbatch.{k}", what)
     if saved["case"] not in CASES:
-        raise ValueError(f"{where}: prismbatch.case must be a case number {min(CASES)}..{max(CASES)}, "
-                         f"got {_short(saved['case'])}")
+        raise ValueError(
+            f"{where}: prismbatch.case must be a case number {min(CASES)}..{max(CASES)}, got {_short(saved['case'])}"
+        )
     if saved.get("contact") is not None:
         _numbers(saved["contact"], (3,), f"{where}: prismbatch.contact", finite=False, null=True)
     refs = _expect(rec["references"], dict, f"{where}: references", "a JSON object")
@@ -214,14 +267,14 @@ def read_replay(path):
     where = _text(path)
     doc = _load_json(path, where)
     if not isinstance(doc, dict) or doc.get("format") != FORMAT:
-        raise ValueError(f"{where}: not a prismbatch replay file (no \"format\": \"{FORMAT}\")")
+        raise ValueError(f'{where}: not a prismbatch replay file (no "format": "{FORMAT}")')
     version = doc.get("version")
     if isinstance(version, bool) or version != VERSION:
         raise ValueError(f"{where}: replay format version {_short(version)}; this prismbatch reads {VERSION}")
-    records = _expect(doc.get("records"), list, f"{where}: \"records\"", "a list")
+    records = _expect(doc.get("records"), list, f'{where}: "records"', "a list")
     for i, rec in enumerate(records):
         _check_record(rec, f"{where}: record {i}")
-    meta = _expect(doc.get("meta", {}), dict, f"{where}: \"meta\"", "a JSON object")
+    meta = _expect(doc.get("meta", {}), dict, f'{where}: "meta"', "a JSON object")
     _scalar(meta.get("seed"), f"{where}: meta.seed")
     versions = _expect(meta.get("versions", {}), dict, f"{where}: meta.versions", "a JSON object")
     _scalar(versions.get("prismbatch"), f"{where}: meta.versions.prismbatch")
@@ -271,24 +324,44 @@ def format_trace(rec, e, *, number=None, total=None):
     L.append(f"  shapes: a {na}-gon, b {nb}-gon; {_text(rec['dtype'])}, rtol {_g(rec['rtol'])}, atol {_g(rec['atol'])}")
     saved = rec["prismbatch"]
     refs = rec.get("references") or {}
-    ref_txt = ", ".join(f"{_text(k)} {_text(v) if isinstance(v, (bool, str)) or v is None else _g(v)}"
-                        for k, v in refs.items())
-    L.append(f"  saved:    prismbatch hit={saved['hit']} case {saved['case']}" + (f"; references: {ref_txt}" if ref_txt else ""))
+    ref_txt = ", ".join(
+        f"{_text(k)} {_text(v) if isinstance(v, (bool, str)) or v is None else _g(v)}" for k, v in refs.items()
+    )
+    L.append(
+        f"  saved:    prismbatch hit={saved['hit']} case {saved['case']}"
+        + (f"; references: {ref_txt}" if ref_txt else "")
+    )
     same = (e["hit"] == saved["hit"]) and (e["case"] == saved["case"])
-    L.append(f"  replayed: prismbatch hit={e['hit']} case {e['case']}"
-             + ("  (same as saved)" if same else "  (DIFFERS from the saved answer: the code has changed)"))
+    L.append(
+        f"  replayed: prismbatch hit={e['hit']} case {e['case']}"
+        + ("  (same as saved)" if same else "  (DIFFERS from the saved answer: the code has changed)")
+    )
     p = (e["p_x"], e["p_y"], e["p_z"])
-    L.append(f"  1. b in a's centred frame (origin at a's end-face centre, z into a): p = ({', '.join(_g(v) for v in p)}), "
-             f"d_a.d_b = R22 = {_g(e['R22'], 17)}; tol = {_g(e['tol'])}")
-    L.append(f"  2. deepest vertex of b's end face: #{int(e['i_top'])}, Δ3 = {_g(e['delta3'], 17)} "
-             + ("(< -tol: end face beyond a's plane)" if e["delta3"] < -e["tol"] else
-                "(within ±tol: touches a's plane)" if e["delta3"] <= e["tol"] else "(> tol: crosses a's plane)"))
+    L.append(
+        f"  1. b in a's centred frame (origin at a's end-face centre, z into a): p = ({', '.join(_g(v) for v in p)}), "
+        f"d_a.d_b = R22 = {_g(e['R22'], 17)}; tol = {_g(e['tol'])}"
+    )
+    L.append(
+        f"  2. deepest vertex of b's end face: #{int(e['i_top'])}, Δ3 = {_g(e['delta3'], 17)} "
+        + (
+            "(< -tol: end face beyond a's plane)"
+            if e["delta3"] < -e["tol"]
+            else "(within ±tol: touches a's plane)"
+            if e["delta3"] <= e["tol"]
+            else "(> tol: crosses a's plane)"
+        )
+    )
     step = 3
     if _known(e, "reach_T"):
-        L.append(f"  {step}. reach: |p_xy| = {_g(e['lateral_offset'])}, |w| (b's axis in a's plane) = "
-                 f"{_g(e['axis_xy_length'])}, T = {_g(e['reach_T'])}; height drift |c| T = {_g(e['height_drift'])} -> "
-                 + ("perpendicular (c taken as 0, height tol widened to " + _g(e["height_tol"]) + ")"
-                    if e["perpendicular"] == 1.0 else "not perpendicular"))
+        L.append(
+            f"  {step}. reach: |p_xy| = {_g(e['lateral_offset'])}, |w| (b's axis in a's plane) = "
+            f"{_g(e['axis_xy_length'])}, T = {_g(e['reach_T'])}; height drift |c| T = {_g(e['height_drift'])} -> "
+            + (
+                "perpendicular (c taken as 0, height tol widened to " + _g(e["height_tol"]) + ")"
+                if e["perpendicular"] == 1.0
+                else "not perpendicular"
+            )
+        )
         step += 1
     if _known(e, "near_top_vertices"):
         L.append(f"  {step}. vertices of b within tol of a's plane: {int(e['near_top_vertices'])} (3 means 3 or more)")
@@ -297,25 +370,38 @@ def format_trace(rec, e, *, number=None, total=None):
     step += 1
     if _known(e, "coarse_margin"):
         if _known(e, "coarse_across"):
-            L.append(f"  {step}. coarse test: across the projected axis {_g(e['coarse_across'])}, along it "
-                     f"{_g(e['coarse_along'])}, margin R_a + R_b + tol = {_g(e['coarse_margin'])}"
-                     + (f"; facing: {_g(e['coarse_facing_lhs'])} vs {_g(e['coarse_facing_rhs'])} "
-                        "(reject if left > right)" if _known(e, "coarse_facing_lhs") else ""))
+            L.append(
+                f"  {step}. coarse test: across the projected axis {_g(e['coarse_across'])}, along it "
+                f"{_g(e['coarse_along'])}, margin R_a + R_b + tol = {_g(e['coarse_margin'])}"
+                + (
+                    f"; facing: {_g(e['coarse_facing_lhs'])} vs {_g(e['coarse_facing_rhs'])} (reject if left > right)"
+                    if _known(e, "coarse_facing_lhs")
+                    else ""
+                )
+            )
         else:
-            L.append(f"  {step}. coarse test (parallel axes): |p_xy| = {_g(e['lateral_offset'])} vs margin "
-                     f"{_g(e['coarse_margin'])}")
+            L.append(
+                f"  {step}. coarse test (parallel axes): |p_xy| = {_g(e['lateral_offset'])} vs margin "
+                f"{_g(e['coarse_margin'])}"
+            )
         step += 1
     if _known(e, "top_vertex_depth_in_Pa"):
         d = e["top_vertex_depth_in_Pa"]
-        L.append(f"  {step}. early accept: signed depth of that vertex's projection in P_a = {_g(d)} "
-                 + ("(inside: accept)" if d >= 0 else "(outside: go on)"))
+        L.append(
+            f"  {step}. early accept: signed depth of that vertex's projection in P_a = {_g(d)} "
+            + ("(inside: accept)" if d >= 0 else "(outside: go on)")
+        )
         step += 1
     if _known(e, "gjk_hit"):
-        L.append(f"  {step}. planar GJK of P_a vs the projection of b (from bottom vertex #{int(e['i_bottom'])}): "
-                 f"{'within tol' if e['gjk_hit'] == 1.0 else 'apart'} after {int(e['gjk_iterations'])} iteration(s)")
+        L.append(
+            f"  {step}. planar GJK of P_a vs the projection of b (from bottom vertex #{int(e['i_bottom'])}): "
+            f"{'within tol' if e['gjk_hit'] == 1.0 else 'apart'} after {int(e['gjk_iterations'])} iteration(s)"
+        )
         step += 1
-    L.append(f"  => exit {e['exit']}: {e['exit_reason']}"
-             + (f"; contact ({', '.join(_g(v) for v in e['contact'])})" if e["hit"] else ""))
+    L.append(
+        f"  => exit {e['exit']}: {e['exit_reason']}"
+        + (f"; contact ({', '.join(_g(v) for v in e['contact'])})" if e["hit"] else "")
+    )
     return L
 
 
@@ -343,8 +429,11 @@ def replay(path, *, out=print, indices=None):
         if not 0 <= i < len(records):
             raise ValueError(f"record index {i} out of range: the file holds {len(records)} record(s)")
     seed, version = meta.get("seed"), meta.get("versions", {}).get("prismbatch")
-    out(f"{_text(path)}: {len(records)} record(s)" + (f", run seed {_text(seed)}" if seed is not None else "")
-        + (f", written by prismbatch {_text(version)}" if version is not None else ""))
+    out(
+        f"{_text(path)}: {len(records)} record(s)"
+        + (f", run seed {_text(seed)}" if seed is not None else "")
+        + (f", written by prismbatch {_text(version)}" if version is not None else "")
+    )
     results = []
     for i in chosen:
         rec = records[i]

@@ -18,8 +18,19 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["package_versions", "cpu_name", "numba_threads", "run_metadata", "jsonable", "write_json",
-           "write_csv", "progress", "new_figure", "save_figure", "MPL_MISSING"]
+__all__ = [
+    "package_versions",
+    "cpu_name",
+    "numba_threads",
+    "run_metadata",
+    "jsonable",
+    "write_json",
+    "write_csv",
+    "progress",
+    "new_figure",
+    "save_figure",
+    "MPL_MISSING",
+]
 
 MPL_MISSING = "figures need matplotlib: pip install 'prismbatch[plot]'"
 
@@ -60,10 +71,16 @@ def numba_threads():
 
 def run_metadata(**extra):
     """A dict describing the run: versions, machine, threads, command line, plus ``extra``."""
-    meta = {"versions": package_versions(),
-            "machine": {"cpu": cpu_name(), "cpu_count": os.cpu_count(), "platform": platform.platform(),
-                        "numba_threads": numba_threads()},
-            "command": " ".join(sys.argv)}
+    meta = {
+        "versions": package_versions(),
+        "machine": {
+            "cpu": cpu_name(),
+            "cpu_count": os.cpu_count(),
+            "platform": platform.platform(),
+            "numba_threads": numba_threads(),
+        },
+        "command": " ".join(sys.argv),
+    }
     meta.update(extra)
     return meta
 

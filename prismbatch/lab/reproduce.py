@@ -34,9 +34,15 @@ PARTS = ("validation", "study", "workprec", "experiment")
 def _validation(out, quick, seed, show):
     from .validate import validate, write_validation
 
-    res = validate(n_pairs=5_000 if quick else 100_000, shapes=("regular", "random", "cylinder"), seed=seed,
-                   lp_samples=300 if quick else 2000, max_band_records=100 if quick else 1000,
-                   stiff="quick" if quick else True, progress=show)
+    res = validate(
+        n_pairs=5_000 if quick else 100_000,
+        shapes=("regular", "random", "cylinder"),
+        seed=seed,
+        lp_samples=300 if quick else 2000,
+        max_band_records=100 if quick else 1000,
+        stiff="quick" if quick else True,
+        progress=show,
+    )
     return write_validation(res, out), res
 
 
@@ -62,8 +68,12 @@ def _experiment(out, quick, seed, show):
 
 
 _RUNNERS = {"validation": _validation, "study": _study, "workprec": _workprec, "experiment": _experiment}
-_TITLES = {"validation": "Monte Carlo validation and the stiff suite", "study": "Timing study against FCL (Table I, Fig. 7)",
-           "workprec": "Error against run time (work-precision)", "experiment": "The manipulation experiment (Sec. VI-B)"}
+_TITLES = {
+    "validation": "Monte Carlo validation and the stiff suite",
+    "study": "Timing study against FCL (Table I, Fig. 7)",
+    "workprec": "Error against run time (work-precision)",
+    "experiment": "The manipulation experiment (Sec. VI-B)",
+}
 
 
 def _files(paths):
@@ -147,18 +157,31 @@ def run_reproduce(out_dir, *, quick=False, seed=0, parts=None, progress_bar=True
         log(f"{part}: {len(part_files)} file(s) in {wall[part]:.1f} s")
         bar.update(1)
     bar.close()
-    meta = run_metadata(description="prismbatch reproduce: validation, timing study, work-precision, experiment",
-                        quick=quick, seed=seed, parts=chosen, wall_s=wall,
-                        files=sorted(Path(f).name for f in files))
+    meta = run_metadata(
+        description="prismbatch reproduce: validation, timing study, work-precision, experiment",
+        quick=quick,
+        seed=seed,
+        parts=chosen,
+        wall_s=wall,
+        files=sorted(Path(f).name for f in files),
+    )
     json_path = write_json(out / "reproduce.json", meta)
     v = meta["versions"]
-    head = ["# prismbatch: reproduction report", "",
-            f"prismbatch {v['prismbatch']}, numba {v['numba']}, numpy {v['numpy']}, python-fcl {v['python-fcl']}, "
-            f"coal {v['coal']}; {meta['machine']['cpu']}, {meta['machine']['numba_threads']} Numba thread(s); "
-            f"seed {seed}; {'quick' if quick else 'full'} run.", "",
-            "| part | wall time |", "|---|---|", *(f"| {p} | {wall[p]:.1f} s |" for p in chosen), "",
-            "Figures are in this folder as PNG and SVG; the CSV files hold every number shown; "
-            "`notebooks/reproduce.ipynb` redraws the figures from them.", ""]
+    head = [
+        "# prismbatch: reproduction report",
+        "",
+        f"prismbatch {v['prismbatch']}, numba {v['numba']}, numpy {v['numpy']}, python-fcl {v['python-fcl']}, "
+        f"coal {v['coal']}; {meta['machine']['cpu']}, {meta['machine']['numba_threads']} Numba thread(s); "
+        f"seed {seed}; {'quick' if quick else 'full'} run.",
+        "",
+        "| part | wall time |",
+        "|---|---|",
+        *(f"| {p} | {wall[p]:.1f} s |" for p in chosen),
+        "",
+        "Figures are in this folder as PNG and SVG; the CSV files hold every number shown; "
+        "`notebooks/reproduce.ipynb` redraws the figures from them.",
+        "",
+    ]
     report = out / "report.md"
     report.write_text("\n".join(head + sections) + "\n", encoding="utf-8")
     return {"report": str(report), "json": json_path, "files": files + [str(report), json_path], "wall_s": wall}

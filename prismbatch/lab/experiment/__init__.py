@@ -23,5 +23,16 @@ from .plots import plot_experiment
 from .report import format_summary, write_experiment
 from .run import run_experiment
 
-__all__ = ["run_experiment", "write_experiment", "format_summary", "ExperimentResult", "projected_contour",
-           "PRISMS", "PLANTS", "PAPER", "FIG10_TIMES"]
+__all__ = [
+    "contour_panels",
+    "plot_experiment",
+    "run_experiment",
+    "write_experiment",
+    "format_summary",
+    "ExperimentResult",
+    "projected_contour",
+    "PRISMS",
+    "PLANTS",
+    "PAPER",
+    "FIG10_TIMES",
+]

@@ -21,8 +21,10 @@ def hull2d(points):
     def half(seq):
         h = []
         for q in seq:
-            while len(h) >= 2 and ((h[-1][0] - h[-2][0]) * (q[1] - h[-2][1])
-                                   - (h[-1][1] - h[-2][1]) * (q[0] - h[-2][0])) <= 0.0:
+            while (
+                len(h) >= 2
+                and ((h[-1][0] - h[-2][0]) * (q[1] - h[-2][1]) - (h[-1][1] - h[-2][1]) * (q[0] - h[-2][0])) <= 0.0
+            ):
                 h.pop()
             h.append(q)
         return h
@@ -53,9 +55,9 @@ def projected_contour(xy_b, pos_b, rot_b, pos_a, rot_a, *, length=None):
     da = Ra[:, 2]
     e1 = Ra[:, 0]
     e2 = np.cross(e1, da)
-    low = pb + xy_b @ Rb[:, :2].T            # b's end face, world
-    high = low + length * Rb[:, 2]           # the stand-in's far face
-    h_low = (low - pa) @ da                  # height into a's half-space (>= 0: on a's side)
+    low = pb + xy_b @ Rb[:, :2].T  # b's end face, world
+    high = low + length * Rb[:, 2]  # the stand-in's far face
+    h_low = (low - pa) @ da  # height into a's half-space (>= 0: on a's side)
     h_high = (high - pa) @ da
     pts = [low[h_low >= 0.0], high[h_high >= 0.0]]
     for P, h in ((low, h_low), (high, h_high)):  # edges of both faces crossing the plane
@@ -63,7 +65,7 @@ def projected_contour(xy_b, pos_b, rot_b, pos_a, rot_a, *, length=None):
         m = (h < 0.0) != (g < 0.0)
         f = h[m] / (h[m] - g[m])
         pts.append(P[m] + f[:, None] * (Q[m] - P[m]))
-    m = (h_low < 0.0) != (h_high < 0.0)      # lateral edges
+    m = (h_low < 0.0) != (h_high < 0.0)  # lateral edges
     f = h_low[m] / (h_low[m] - h_high[m])
     pts.append(low[m] + f[:, None] * (high[m] - low[m]))
     allp = np.concatenate(pts)
@@ -97,8 +99,17 @@ def contour_panels(res):
     panels = []
     for tt, k, label in marks:
         Q = projected_contour(g["xy_b"], res.dc[k] + pa, g["rot_b"], pa, Ra)
-        panels.append(dict(t=float(tt), k=k, label=label, case=int(res.case[k]), hit=bool(res.hit[k]),
-                           end_face=plane(g["xy_b"] @ g["rot_b"][:, :2].T + res.dc[k]),
-                           projection=np.asarray(Q).reshape(-1, 2), centre=plane(res.dc[k][None])[0],
-                           contact=plane((res.contact[k] - pa)[None])[0] if res.hit[k] else None))
+        panels.append(
+            dict(
+                t=float(tt),
+                k=k,
+                label=label,
+                case=int(res.case[k]),
+                hit=bool(res.hit[k]),
+                end_face=plane(g["xy_b"] @ g["rot_b"][:, :2].T + res.dc[k]),
+                projection=np.asarray(Q).reshape(-1, 2),
+                centre=plane(res.dc[k][None])[0],
+                contact=plane((res.contact[k] - pa)[None])[0] if res.hit[k] else None,
+            )
+        )
     return panels, poly_a

@@ -40,17 +40,17 @@ class ExperimentResult:
     """
 
     params: dict
-    t: np.ndarray             # (N,) s
-    dc: np.ndarray            # (N, 3) ΔC = b's end-face centre - a's, mm
-    case: np.ndarray          # (N,) int8, pb.CASES
-    hit: np.ndarray           # (N,) bool
+    t: np.ndarray  # (N,) s
+    dc: np.ndarray  # (N, 3) ΔC = b's end-face centre - a's, mm
+    case: np.ndarray  # (N,) int8, pb.CASES
+    hit: np.ndarray  # (N,) bool
     contact_class: np.ndarray  # (N,) int8, CONTACT_CLASSES (0: no hit)
-    contact: np.ndarray       # (N, 3) contact point, world mm (NaN: no hit)
-    direction: np.ndarray     # (N, 3) detach direction (NaN: no hit)
-    u_pd: np.ndarray          # (N, 3) attraction (PD) input
-    u_d: np.ndarray           # (N, 3) detach input (0 where no hit)
-    detect_s: np.ndarray      # (N,) time of the per-sample collide call, s
-    geometry: dict            # shapes and poses: xy_a, xy_b, xy_b_real, pos_a, rot_a, rot_b
+    contact: np.ndarray  # (N, 3) contact point, world mm (NaN: no hit)
+    direction: np.ndarray  # (N, 3) detach direction (NaN: no hit)
+    u_pd: np.ndarray  # (N, 3) attraction (PD) input
+    u_d: np.ndarray  # (N, 3) detach input (0 where no hit)
+    detect_s: np.ndarray  # (N,) time of the per-sample collide call, s
+    geometry: dict  # shapes and poses: xy_a, xy_b, xy_b_real, pos_a, rot_a, rot_b
     summary: dict = field(default_factory=dict)
     timing: dict = field(default_factory=dict)
 

@@ -60,8 +60,11 @@ def _plot_contours(res, out, name):
         if P["hit"]:
             ax.plot([P["contact"][0]], [P["contact"][1]], "x", color="black", ms=8, mew=2, label="contact point")
         hit = ", collision" if P["hit"] else ""
-        title = (f"t = {P['t']:g} s: case {P['case']}{hit}" if P["label"] is None
-                 else f"{P['label']}, t = {P['t']:.2f} s: case {P['case']}{hit}")
+        title = (
+            f"t = {P['t']:g} s: case {P['case']}{hit}"
+            if P["label"] is None
+            else f"{P['label']}, t = {P['t']:.2f} s: case {P['case']}{hit}"
+        )
         if not len(Q):
             title += " (no projection)"
         ax.set_title(title, fontsize=10, color="tab:red" if P["hit"] else "black")
@@ -77,8 +80,11 @@ def _plot_contours(res, out, name):
     for ax in fig.axes:
         for hh, ll in zip(*ax.get_legend_handles_labels()):
             seen.setdefault(ll, hh)
-    fig.suptitle(f"Projected contours on a's end plane (along d_a, seen from above), {res.params['prism']} prism "
-                 "— cf. paper Fig. 10", fontsize=11)
+    fig.suptitle(
+        f"Projected contours on a's end plane (along d_a, seen from above), {res.params['prism']} prism "
+        "— cf. paper Fig. 10",
+        fontsize=11,
+    )
     fig.legend(list(seen.values()), list(seen.keys()), loc="outside lower center", ncol=5, fontsize=9)
     return save_figure(fig, out, name)
 
@@ -93,9 +99,9 @@ def _plot_trajectory(res, out, name):
     da = Ra[:, 2]
     x0, xd = res.dc[0], np.asarray(res.params["xd_um"]) * UM
     w = np.cross(da, xd - x0)
-    w /= np.linalg.norm(w)          # viewing axis, parallel with d_a x (x_d - x_0)
-    z_ax = -da                      # up on the page
-    s_ax = np.cross(z_ax, w)        # completes a right-handed screen frame (s, z) seen along w
+    w /= np.linalg.norm(w)  # viewing axis, parallel with d_a x (x_d - x_0)
+    z_ax = -da  # up on the page
+    s_ax = np.cross(z_ax, w)  # completes a right-handed screen frame (s, z) seen along w
     fig = new_figure(figsize=(7.5, 8.0), layout="constrained")
     ax = fig.add_subplot()
     depth = 3.0
@@ -106,8 +112,10 @@ def _plot_trajectory(res, out, name):
     blen = 2.5
     for k, col, lab in ((0, "black", "b, initial"), (len(res.t) - 1, "tab:blue", "b, final")):
         pb_ = pa + res.dc[k]
-        for xy, ls, extra in ((g["xy_b_real"], "-", f" ({1e3 * res.params['b_real_diameter_mm']:.0f} µm)"),
-                              (g["xy_b"], ":", f" (protective {res.params['b_diameter_mm']:g} mm)")):
+        for xy, ls, extra in (
+            (g["xy_b_real"], "-", f" ({1e3 * res.params['b_real_diameter_mm']:.0f} µm)"),
+            (g["xy_b"], ":", f" (protective {res.params['b_diameter_mm']:g} mm)"),
+        ):
             face = pb_ + xy @ Rb[:, :2].T
             S = _silhouette(np.vstack([face, face + blen * Rb[:, 2]]), s_ax, z_ax)
             ax.plot(*_closed(S).T, color=col, lw=1.3, ls=ls, label=lab + extra)
@@ -120,16 +128,23 @@ def _plot_trajectory(res, out, name):
         ax.plot(cp @ s_ax, cp @ z_ax, "x", color="tab:red", ms=8, mew=2, label="contact point")
         sc = 0.4
         for q, d in zip(cp, res.direction[hk]):
-            ax.annotate("", xy=(q @ s_ax + sc * (d @ s_ax), q @ z_ax + sc * (d @ z_ax)), xytext=(q @ s_ax, q @ z_ax),
-                        arrowprops=dict(arrowstyle="->", color="tab:green", lw=1.5))
+            ax.annotate(
+                "",
+                xy=(q @ s_ax + sc * (d @ s_ax), q @ z_ax + sc * (d @ z_ax)),
+                xytext=(q @ s_ax, q @ z_ax),
+                arrowprops=dict(arrowstyle="->", color="tab:green", lw=1.5),
+            )
         ax.plot([], [], color="tab:green", lw=1.5, label="detach direction (in view)")
     ax.plot([xd @ s_ax], [xd @ z_ax], "*", color="tab:blue", ms=12, label="goal")
     ax.set_aspect("equal")
     ax.grid(alpha=0.3)
     ax.set_xlabel("along the horizontal part of x_d − x_0 (mm)")
     ax.set_ylabel("height, −d_a = z (mm)")
-    ax.set_title(f"Trajectory of b, {res.params['prism']} prism — cf. paper Fig. 11a\n"
-                 f"seen along d_a × (x_d − x_0) ∥ ({w[0]:.3f}, {w[1]:.3f}, {w[2]:.3f})", fontsize=10)
+    ax.set_title(
+        f"Trajectory of b, {res.params['prism']} prism — cf. paper Fig. 11a\n"
+        f"seen along d_a × (x_d − x_0) ∥ ({w[0]:.3f}, {w[1]:.3f}, {w[2]:.3f})",
+        fontsize=10,
+    )
     fig.legend(loc="outside lower center", ncol=3, fontsize=8.5)
     return save_figure(fig, out, name)
 
@@ -148,15 +163,15 @@ def _plot_states(res, out, name):
         axs[0].axhline(xd[i], color=cols[i], ls="--", lw=0.8)
     axs[0].plot([], [], color="0.3", ls="--", lw=0.8, label="goal")
     axs[0].set_ylabel("state ΔC (µm)")
-    axs[0].set_title(f"(b) state and (c) inputs, {p['prism']} prism, {p['plant']} plant — cf. Fig. 11b, c",
-                     fontsize=10)
+    axs[0].set_title(f"(b) state and (c) inputs, {p['prism']} prism, {p['plant']} plant — cf. Fig. 11b, c", fontsize=10)
     for i, c in enumerate("xyz"):
         axs[1].plot(t, 1e3 * res.u_pd[:, i], color=cols[i], label=f"u_pd,{c}")
     axs[1].set_ylabel(f"attraction u_pd ({unit})")
     for i, c in enumerate("xyz"):
         if len(hk):
-            m, st, b = axs[2].stem(t[hk], 1e3 * res.u_d[hk, i], linefmt=cols[i], markerfmt="o", basefmt=" ",
-                                   label=f"u_d,{c}")
+            m, st, b = axs[2].stem(
+                t[hk], 1e3 * res.u_d[hk, i], linefmt=cols[i], markerfmt="o", basefmt=" ", label=f"u_d,{c}"
+            )
             m.set_color(cols[i])
     axs[2].axhline(0.0, color="0.5", lw=0.8)
     axs[2].set_ylabel(f"detach u_d ({unit})")

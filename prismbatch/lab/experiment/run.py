@@ -24,17 +24,38 @@ def _circumradius(n, side):
     return side / (2.0 * math.sin(math.pi / n))
 
 
-def _validate(prism, vertices, plant, duration, dt, kp, kd, eps, max_speed, mass, damping, detach_tol,
-              goal_tol_um, b_diameter_mm, b_real_diameter_mm):
+def _validate(
+    prism,
+    vertices,
+    plant,
+    duration,
+    dt,
+    kp,
+    kd,
+    eps,
+    max_speed,
+    mass,
+    damping,
+    detach_tol,
+    goal_tol_um,
+    b_diameter_mm,
+    b_real_diameter_mm,
+):
     if prism not in PRISMS:
         raise ValueError(f"prism must be one of {sorted(PRISMS)}, got {prism!r}")
     if plant not in PLANTS:
         raise ValueError(f"plant must be one of {list(PLANTS)}, got {plant!r}")
     if int(vertices) != vertices or vertices < 3:
         raise ValueError(f"vertices must be an integer >= 3, got {vertices}")
-    for name, v in (("duration", duration), ("dt", dt), ("mass", mass), ("damping", damping),
-                    ("goal_tol_um", goal_tol_um), ("b_diameter_mm", b_diameter_mm),
-                    ("b_real_diameter_mm", b_real_diameter_mm)):
+    for name, v in (
+        ("duration", duration),
+        ("dt", dt),
+        ("mass", mass),
+        ("damping", damping),
+        ("goal_tol_um", goal_tol_um),
+        ("b_diameter_mm", b_diameter_mm),
+        ("b_real_diameter_mm", b_real_diameter_mm),
+    ):
         if not (np.isfinite(v) and v > 0):
             raise ValueError(f"{name} must be finite and > 0, got {v}")
     for name, v in (("kp", kp), ("kd", kd), ("eps", eps)):
@@ -176,11 +197,31 @@ def _simulate(col, shape_a, g, x0, xd, N, ctl):
     return tr, detach_s
 
 
-def run_experiment(prism="square", *, vertices=3600, plant="velocity", duration=20.0, dt=0.02,
-                   kp=0.3, kd=0.002, eps=10.0, max_speed=None, mass=0.1, damping=1.0, detach_tol=None,
-                   goal_tol_um=50.0, b_diameter_mm=1.5, b_real_diameter_mm=0.985, a_phase_deg=0.0,
-                   x0_um=(2551.0, -2780.0, -1970.0), xd_um=(0.0, 0.0, 1000.0),
-                   d_b=(-0.0262, -0.0087, 0.9996), timing=True, fcl=True, repeats=3):
+def run_experiment(
+    prism="square",
+    *,
+    vertices=3600,
+    plant="velocity",
+    duration=20.0,
+    dt=0.02,
+    kp=0.3,
+    kd=0.002,
+    eps=10.0,
+    max_speed=None,
+    mass=0.1,
+    damping=1.0,
+    detach_tol=None,
+    goal_tol_um=50.0,
+    b_diameter_mm=1.5,
+    b_real_diameter_mm=0.985,
+    a_phase_deg=0.0,
+    x0_um=(2551.0, -2780.0, -1970.0),
+    xd_um=(0.0, 0.0, 1000.0),
+    d_b=(-0.0262, -0.0087, 0.9996),
+    timing=True,
+    fcl=True,
+    repeats=3,
+):
     """Simulate the paper's experiment; docs/methods/experiment.md describes the model.
 
     Parameters
@@ -227,8 +268,23 @@ def run_experiment(prism="square", *, vertices=3600, plant="velocity", duration=
     -------
     ExperimentResult
     """
-    _validate(prism, vertices, plant, duration, dt, kp, kd, eps, max_speed, mass, damping, detach_tol,
-              goal_tol_um, b_diameter_mm, b_real_diameter_mm)
+    _validate(
+        prism,
+        vertices,
+        plant,
+        duration,
+        dt,
+        kp,
+        kd,
+        eps,
+        max_speed,
+        mass,
+        damping,
+        detach_tol,
+        goal_tol_um,
+        b_diameter_mm,
+        b_real_diameter_mm,
+    )
     vertices = int(vertices)
     n_a, side = PRISMS[prism]
     shape_a, shape_b, geometry = _scene(prism, vertices, a_phase_deg, b_diameter_mm, b_real_diameter_mm, d_b)
@@ -243,19 +299,43 @@ def run_experiment(prism="square", *, vertices=3600, plant="velocity", duration=
     ctl = _Control(plant, dt, kp, kd, eps, max_speed, mass, damping, detach_tol)
     tr, detach_s = _simulate(col, shape_a, geometry, x0, xd, N, ctl)
 
-    params = dict(prism=prism, a_vertices=n_a, a_side_mm=side, a_phase_deg=a_phase_deg, vertices=vertices,
-                  b_diameter_mm=b_diameter_mm, b_real_diameter_mm=b_real_diameter_mm, plant=plant,
-                  duration_s=duration, dt_s=dt, n_samples=N, kp=kp, kd=kd, eps=eps, max_speed_mm_s=max_speed,
-                  mass_kg=mass if plant == "force" else None, damping_mN_s_per_mm=damping if plant == "force" else None,
-                  detach_tol_mm=detach_tol if detach_tol is not None else "distance moved in the last step (>= 1 nm)",
-                  goal_tol_um=goal_tol_um, x0_um=list(map(float, x0_um)), xd_um=list(map(float, xd_um)),
-                  d_a=[0.0, 0.0, -1.0], d_b=list(map(float, rot_b[:, 2])), d_b_given=list(map(float, d_b)),
-                  collide_rtol=col.rtol)
-    res = ExperimentResult(params, t, tr.dc, tr.case, tr.hit, tr.cls, tr.contact, tr.direction, tr.u_pd, tr.u_d,
-                           tr.detect_s, geometry)
+    params = dict(
+        prism=prism,
+        a_vertices=n_a,
+        a_side_mm=side,
+        a_phase_deg=a_phase_deg,
+        vertices=vertices,
+        b_diameter_mm=b_diameter_mm,
+        b_real_diameter_mm=b_real_diameter_mm,
+        plant=plant,
+        duration_s=duration,
+        dt_s=dt,
+        n_samples=N,
+        kp=kp,
+        kd=kd,
+        eps=eps,
+        max_speed_mm_s=max_speed,
+        mass_kg=mass if plant == "force" else None,
+        damping_mN_s_per_mm=damping if plant == "force" else None,
+        detach_tol_mm=detach_tol if detach_tol is not None else "distance moved in the last step (>= 1 nm)",
+        goal_tol_um=goal_tol_um,
+        x0_um=list(map(float, x0_um)),
+        xd_um=list(map(float, xd_um)),
+        d_a=[0.0, 0.0, -1.0],
+        d_b=list(map(float, rot_b[:, 2])),
+        d_b_given=list(map(float, d_b)),
+        collide_rtol=col.rtol,
+    )
+    res = ExperimentResult(
+        params, t, tr.dc, tr.case, tr.hit, tr.cls, tr.contact, tr.direction, tr.u_pd, tr.u_d, tr.detect_s, geometry
+    )
     res.summary = summarise(res, tr.tol_used)
-    res.timing = dict(compile_s=compile_s, loop_ms=1e3 * float(tr.detect_s.sum()), detach_ms=1e3 * detach_s,
-                      loop_per_call_us=1e6 * float(tr.detect_s.mean()))
+    res.timing = dict(
+        compile_s=compile_s,
+        loop_ms=1e3 * float(tr.detect_s.sum()),
+        detach_ms=1e3 * detach_s,
+        loop_per_call_us=1e6 * float(tr.detect_s.mean()),
+    )
     if timing:
         res.timing.update(replay_timing(res, col, shape_a, shape_b, fcl=fcl, repeats=max(1, int(repeats))))
         if res.timing.get("fcl_ms"):

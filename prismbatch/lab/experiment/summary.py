@@ -35,13 +35,23 @@ def summarise(res, tol_used):
     for k in hit_idx:
         nxt = k + 1 < len(t) and not hit[k + 1]
         sep = float(np.dot(res.dc[k + 1] - res.dc[k], res.direction[k])) if k + 1 < len(t) else float("nan")
-        events.append(dict(
-            t_s=float(t[k]), step=int(k), case=int(case[k]), contact_class=int(res.contact_class[k]),
-            contact_class_name=CONTACT_CLASSES[int(res.contact_class[k])],
-            contact_um=(res.contact[k] / UM).tolist(), direction=res.direction[k].tolist(),
-            detach_input=float(np.linalg.norm(res.u_d[k])), pd_input=float(np.linalg.norm(res.u_pd[k])),
-            error_um=float(err[k] / UM), feature_tol_um=float(tol_used[k] / UM),
-            next_step_collision_free=bool(nxt), moved_out_um=sep / UM))
+        events.append(
+            dict(
+                t_s=float(t[k]),
+                step=int(k),
+                case=int(case[k]),
+                contact_class=int(res.contact_class[k]),
+                contact_class_name=CONTACT_CLASSES[int(res.contact_class[k])],
+                contact_um=(res.contact[k] / UM).tolist(),
+                direction=res.direction[k].tolist(),
+                detach_input=float(np.linalg.norm(res.u_d[k])),
+                pd_input=float(np.linalg.norm(res.u_pd[k])),
+                error_um=float(err[k] / UM),
+                feature_tol_um=float(tol_used[k] / UM),
+                next_step_collision_free=bool(nxt),
+                moved_out_um=sep / UM,
+            )
+        )
     ok = err <= goal_tol
     reached_at = None
     if ok[-1]:
@@ -62,15 +72,18 @@ def summarise(res, tol_used):
         case_runs=[dict(case=c, t_start_s=a, t_end_s=b, samples=n) for c, a, b, n in runs],
         case_sequence=[r_[0] for r_ in runs],
         case_counts={int(c): int((case == c).sum()) for c in np.unique(case)},
-        fig10_times_s=list(FIG10_TIMES), fig10_cases=fig10,
+        fig10_times_s=list(FIG10_TIMES),
+        fig10_cases=fig10,
         case1_for_good_from_s=case1_from,
-        collision_samples=int(hit.sum()), collision_episodes=len(episodes),
+        collision_samples=int(hit.sum()),
+        collision_episodes=len(episodes),
         first_collision_s=float(t[first]) if first is not None else None,
         first_contact_class=int(res.contact_class[first]) if first is not None else None,
         events=events,
         collisions_after_first_detach_s=later,
         every_detach_followed_by_free_step=bool(all(e["next_step_collision_free"] for e in events)),
-        goal_reached=bool(ok[-1]), goal_reached_at_s=reached_at,
+        goal_reached=bool(ok[-1]),
+        goal_reached_at_s=reached_at,
         goal_reached_without_further_collision=bool(ok[-1]) and not later,
         final_error_um=float(err[-1] / UM),
         max_speed_mm_s=float(np.max(np.linalg.norm(np.diff(res.dc, axis=0), axis=1)) / dt) if len(t) > 1 else 0.0,

@@ -16,14 +16,36 @@ from ...collide import Collider  # noqa: F401  (run_stiff_suite takes it from he
 from .certificates import contact_certified, plane_certificate
 from .constructions import PairSet, coplanar_pairs, face_pairs, side_pairs
 from .families import FAMILIES
-from .geometry import R_DOWN, rot_z  # noqa: F401  (public in the single-module version)
-from .geometry import axis_rotation, collinear_polygon, pair_scale, random_polygon, sliver_polygon, with_axis
+from .geometry import (  # noqa: F401  (public in the single-module version)
+    R_DOWN,
+    axis_rotation,
+    collinear_polygon,
+    pair_scale,
+    random_polygon,
+    rot_z,
+    sliver_polygon,
+    with_axis,
+)
 from .report import StiffReport, write_stiff_report
 from .run import run_stiff_suite
 
 #: The name this helper had in the single-module version (tests/test_stiff_suite.py uses it).
 _with_axis = with_axis
 
-__all__ = ["StiffReport", "run_stiff_suite", "write_stiff_report", "FAMILIES", "PairSet", "pair_scale",
-           "face_pairs", "side_pairs", "coplanar_pairs", "random_polygon", "sliver_polygon",
-           "collinear_polygon", "axis_rotation", "plane_certificate", "contact_certified"]
+__all__ = [
+    "StiffReport",
+    "run_stiff_suite",
+    "write_stiff_report",
+    "FAMILIES",
+    "PairSet",
+    "pair_scale",
+    "face_pairs",
+    "side_pairs",
+    "coplanar_pairs",
+    "random_polygon",
+    "sliver_polygon",
+    "collinear_polygon",
+    "axis_rotation",
+    "plane_certificate",
+    "contact_certified",
+]

@@ -29,7 +29,8 @@ def plane_certificate(xy_a, pos_a, rot_a, xy_b, pos_b, rot_b, *, top=12):
     A plane is valid only if both bodies are bounded along it,
     ``n . d_a <= 0 <= n . d_b``: these signs are checked in exact rational
     arithmetic on the float inputs (a candidate that fails them is also tried
-    projected exactly onto the planes normal to ``d_a``, to ``d_b`` and to both). The gap ``min_b n.x - max_a n.x`` is then
+    projected exactly onto the planes normal to ``d_a``, to ``d_b`` and to both). The gap
+    ``min_b n.x - max_a n.x`` is then
     evaluated in float64 over the end-face vertices (error ~1e-16 of the
     coordinates).
 
@@ -65,7 +66,7 @@ def plane_certificate(xy_a, pos_a, rot_a, xy_b, pos_b, rot_b, *, top=12):
     # Best float value first; many near-valid candidates fail the exact signs for nearly
     # parallel axes, so go on until `top` of them pass.
     found = 0
-    for idx in np.argsort(-val)[:50 * top]:
+    for idx in np.argsort(-val)[: 50 * top]:
         if val[idx] <= best:
             break
         for n in _valid_variants(C[idx], fa, fb):

@@ -38,15 +38,22 @@ class PairSet:
 
 def _stack(rows, lp=False):
     A, B, pa, Ra, pb_, Rb, g = zip(*rows)
-    return PairSet(list(A), list(B), np.array(pa), np.array(Ra), np.array(pb_), np.array(Rb),
-                   np.array(g, float), lp)
+    return PairSet(list(A), list(B), np.array(pa), np.array(Ra), np.array(pb_), np.array(Rb), np.array(g, float), lp)
 
 
 def concat(*parts):
     """One :class:`PairSet` of all the pairs of ``parts``, in order."""
     c = lambda k: np.concatenate([getattr(p, k) for p in parts])  # noqa: E731
-    return PairSet(sum((p.polys_a for p in parts), []), sum((p.polys_b for p in parts), []), c("pos_a"),
-                   c("rot_a"), c("pos_b"), c("rot_b"), c("gap"), parts[0].lp)
+    return PairSet(
+        sum((p.polys_a for p in parts), []),
+        sum((p.polys_b for p in parts), []),
+        c("pos_a"),
+        c("rot_a"),
+        c("pos_b"),
+        c("rot_b"),
+        c("gap"),
+        parts[0].lp,
+    )
 
 
 def _a_pose(rng, A, scale):

@@ -14,7 +14,7 @@ import numpy as np
 
 from ...collide import DEFAULT_RTOL
 from ...shapes import Prism, PrismSet
-from ..exact import margin_lp
+from ..exact import lp_trust_band, margin_lp
 from .certificates import EPS64, contact_certified, plane_certificate
 from .geometry import world_centres
 
@@ -54,8 +54,7 @@ def _geometry(ps):
     n = len(ps)
     S, csum, big = np.empty(n), np.empty(n), np.empty(n)
     for k in range(n):
-        wa, ra, wb, rb = world_centres(ps.polys_a[k], ps.pos_a[k], ps.rot_a[k],
-                                       ps.polys_b[k], ps.pos_b[k], ps.rot_b[k])
+        wa, ra, wb, rb = world_centres(ps.polys_a[k], ps.pos_a[k], ps.rot_a[k], ps.polys_b[k], ps.pos_b[k], ps.rot_b[k])
         S[k] = ra + rb + np.linalg.norm(wb - wa)
         csum[k] = np.linalg.norm(wa) + np.linalg.norm(wb)
         rho = np.max(np.abs(ps.polys_a[k])) + np.max(np.abs(ps.polys_b[k]))
@@ -78,11 +77,11 @@ def _need(ps, m, trusted, tol, lo_slack, hi_slack, band_lp):
 
 
 class _Tolerances(NamedTuple):
-    S: np.ndarray       # pair scale
-    tol64: np.ndarray   # float64 pair tolerance
-    tol: np.ndarray     # this dtype's pair tolerance
-    slack: np.ndarray   # how far rounding to this dtype moved the bodies
-    eps: float          # this dtype's machine epsilon
+    S: np.ndarray  # pair scale
+    tol64: np.ndarray  # float64 pair tolerance
+    tol: np.ndarray  # this dtype's pair tolerance
+    slack: np.ndarray  # how far rounding to this dtype moved the bodies
+    eps: float  # this dtype's machine epsilon
 
 
 def _tolerances(ps, dt):
@@ -150,8 +149,17 @@ def _judge(ps, r, poses, need, truth64, tl, dt, c):
     for k in range(len(ps)):
         h = bool(r.hit[k])
         xa, xb = rnd(ps.polys_a[k]), rnd(ps.polys_b[k])
-        cert_c = lambda: contact_certified(xa, pa[k], Ra[k], xb, pb_[k], Rb[k], r.contact[k],  # noqa: E731
-                                           tl.tol[k] + tl.slack[k], tl.eps)
+        cert_c = lambda: contact_certified(
+            xa,
+            pa[k],
+            Ra[k],
+            xb,
+            pb_[k],
+            Rb[k],
+            r.contact[k],  # noqa: E731
+            tl.tol[k] + tl.slack[k],
+            tl.eps,
+        )
         cert_p = lambda: plane_certificate(xa, pa[k], Ra[k], xb, pb_[k], Rb[k])  # noqa: E731
         if h and np.all(np.isfinite(r.contact[k])) and not cert_c():
             c["contact_outside_2tol"] += 1
@@ -166,8 +174,9 @@ def _departures(ps, m, hit, truth64, tl):
     """Answers differing from the float64-required one (outside the float64 band), and the largest."""
     measure = np.abs(ps.gap) if not ps.lp else np.abs(m)
     dep = ((truth64 == 1) & ~hit) | ((truth64 == -1) & hit)
-    out = dict(departures=int(dep.sum()),
-               departures_hit=int((dep & hit).sum()))  # float64 says miss, this dtype says hit
+    out = dict(
+        departures=int(dep.sum()), departures_hit=int((dep & hit).sum())
+    )  # float64 says miss, this dtype says hit
     S, tol64 = tl.S, tl.tol64
     with np.errstate(invalid="ignore"):
         out["max_departure_rel"] = float(np.nanmax(measure[dep] / S[dep])) if dep.any() else 0.0
@@ -179,7 +188,7 @@ def run_one(ps, shapes, m, trusted, dt, collider):
     """Evaluate one PairSet in one dtype with the Collider class ``collider``; returns a row's counts."""
     dt = np.dtype(dt)
     tl = _tolerances(ps, dt)
-    band_lp = np.maximum(tl.tol64, 1e-7 * tl.S)
+    band_lp = lp_trust_band(tl.tol64, tl.S)
     need64 = _need(ps, m, trusted, tl.tol64, 0.0, 0.0, band_lp)
     need = need64 if dt == np.float64 else _need(ps, m, trusted, tl.tol, tl.slack, tl.slack, band_lp)
 
@@ -189,10 +198,20 @@ def run_one(ps, shapes, m, trusted, dt, collider):
     # what the kernel saw: poses and polygons rounded to dt (certificates use these)
     poses = tuple(x.astype(np.float64) for x in P)
 
-    c = dict(pairs=len(ps), hits=int(r.hit.sum()), non_finite=0, disagreements_outside_band=0, inside_band=0,
-             unresolved=0, certified_over_lp=0, rounding_explained=0, contact_outside_2tol=0)
-    c["non_finite"] = int((~np.isfinite(r.contact[r.hit])).any(axis=1).sum()
-                          + (~np.isnan(r.contact[~r.hit])).any(axis=1).sum())
+    c = dict(
+        pairs=len(ps),
+        hits=int(r.hit.sum()),
+        non_finite=0,
+        disagreements_outside_band=0,
+        inside_band=0,
+        unresolved=0,
+        certified_over_lp=0,
+        rounding_explained=0,
+        contact_outside_2tol=0,
+    )
+    c["non_finite"] = int(
+        (~np.isfinite(r.contact[r.hit])).any(axis=1).sum() + (~np.isnan(r.contact[~r.hit])).any(axis=1).sum()
+    )
     truth64 = need64.copy()  # confirmed float64 truth for the departure count
     _judge(ps, r, poses, need, truth64, tl, dt, c)
     c.update(_departures(ps, m, r.hit, truth64, tl))

@@ -13,8 +13,16 @@ import numpy as np
 
 from ...sampling import random_rotations
 from .constructions import PairSet, concat, coplanar_pairs, face_pairs, side_pairs
-from .geometry import (R_DOWN, axis_rotation, collinear_polygon, down_rotation, random_polygon, rot_z, sliver_polygon,
-                       with_axis)
+from .geometry import (
+    R_DOWN,
+    axis_rotation,
+    collinear_polygon,
+    down_rotation,
+    random_polygon,
+    rot_z,
+    sliver_polygon,
+    with_axis,
+)
 
 #: Relative separations cycled through by the constructed families other than ``separation``:
 #: overlaps, clear hits, the float64 band (3e-9), float32's range (1e-7 .. 1e-5), clear misses.
@@ -108,8 +116,10 @@ def _fam_vertices(rng, n, nv):
     nv = int(nv)
     if nv not in _REGULAR_CACHE:
         ang = 2 * np.pi * np.arange(nv) / nv
-        _REGULAR_CACHE[nv] = (np.column_stack([2.0 * np.cos(ang), 2.0 * np.sin(ang)]),
-                              np.column_stack([1.5 * np.cos(ang + 0.3), 1.5 * np.sin(ang + 0.3)]))
+        _REGULAR_CACHE[nv] = (
+            np.column_stack([2.0 * np.cos(ang), 2.0 * np.sin(ang)]),
+            np.column_stack([1.5 * np.cos(ang + 0.3), 1.5 * np.sin(ang + 0.3)]),
+        )
     A, B = _REGULAR_CACHE[nv]
     return _mixed(rng, [A] * n, [B] * n, _cycle(n, rng))
 
@@ -145,8 +155,9 @@ def _fam_collinear(rng, n, bulge):
 
 
 def _lp_set(A, B, pa, Ra, pb_, Rb):
-    return PairSet(list(A), list(B), np.array(pa), np.array(Ra), np.array(pb_), np.array(Rb),
-                   np.full(len(A), np.nan), True)
+    return PairSet(
+        list(A), list(B), np.array(pa), np.array(Ra), np.array(pb_), np.array(Rb), np.full(len(A), np.nan), True
+    )
 
 
 def _fam_perp_lp(rng, n, v):
@@ -166,8 +177,10 @@ def _near_parallel_lp(rng, n, tilt, facing):
     A, B = _polys(rng, n), _polys(rng, n)
     Ra = [down_rotation(rng) for _ in range(n)]
     base = np.eye(3) if facing else R_DOWN
-    Rb = [axis_rotation([math.cos(t), math.sin(t), 0.0], tilt) @ rot_z(s) @ base
-          for t, s in rng.uniform(0, 2 * np.pi, (n, 2))]
+    Rb = [
+        axis_rotation([math.cos(t), math.sin(t), 0.0], tilt) @ rot_z(s) @ base
+        for t, s in rng.uniform(0, 2 * np.pi, (n, 2))
+    ]
     pa = rng.uniform(-1, 1, (n, 3))
     pb_ = pa + np.column_stack([rng.uniform(-3.0, 3.0, (n, 2)), rng.uniform(-1.0, 1.0, n)])
     return _lp_set(A, B, pa, Ra, pb_, Rb)
@@ -200,7 +213,7 @@ def _fam_collinear_lp(rng, n, bulge):
     return _free_lp(rng, *_collinear_pair_polys(rng, n, bulge))
 
 
-_SEPARATIONS = (-1e-3, -1e-9, -1e-15, 0.0) + tuple(10.0 ** k for k in range(-15, -2)) + (3e-9,)
+_SEPARATIONS = (-1e-3, -1e-9, -1e-15, 0.0) + tuple(10.0**k for k in range(-15, -2)) + (3e-9,)
 _PERP = (1e-1, 1e-3, 1e-6, 1e-9, 1e-12, 1e-16, 0.0)
 _PAR = (1e-1, 1e-4, 1e-8, 1e-12, 1e-16, 0.0)
 _TILTS = (1e-2, 1e-4, 1e-6, 1e-8, 1e-10, 1e-12, 1e-16, 0.0)

@@ -33,8 +33,9 @@ def _check_arguments(dtypes, seed, families):
     names = list(FAMILIES) if families is None else [families] if isinstance(families, str) else list(families)
     unknown = [f for f in names if f not in FAMILIES]
     if unknown or not names:
-        raise ValueError(f"families: unknown {unknown} (choose from {sorted(FAMILIES)})" if unknown
-                         else "families is empty")
+        raise ValueError(
+            f"families: unknown {unknown} (choose from {sorted(FAMILIES)})" if unknown else "families is empty"
+        )
     return dts, names
 
 
@@ -44,8 +45,9 @@ def _collider():
     return importlib.import_module(__package__).Collider
 
 
-def run_stiff_suite(*, quick=False, seed=0, dtypes=("float64", "float32"), progress=False,
-                    families=None) -> StiffReport:
+def run_stiff_suite(
+    *, quick=False, seed=0, dtypes=("float64", "float32"), progress=False, families=None
+) -> StiffReport:
     """Run every stiff/extreme family in each dtype against its known ground truth.
 
     Parameters
@@ -90,5 +92,10 @@ def run_stiff_suite(*, quick=False, seed=0, dtypes=("float64", "float32"), progr
                 c = run_one(ps, shapes, m, trusted, dt, collider)
                 rows.append(dict(family=fam, param=pname, value=float(val), dtype=dt.name, truth=truth, **c))
             bar.update(1)
-    return StiffReport(rows, bool(quick), int(seed), time.perf_counter() - t0,
-                       run_metadata(suite="stiff", quick=bool(quick), seed=int(seed)))
+    return StiffReport(
+        rows,
+        bool(quick),
+        int(seed),
+        time.perf_counter() - t0,
+        run_metadata(suite="stiff", quick=bool(quick), seed=int(seed)),
+    )

@@ -14,16 +14,16 @@ prismbatch, LP adjudication), ``analysis`` (:func:`fit_growth`, Table I),
 from .agreement import adjudicate
 from .analysis import fit_growth
 from .constants import (
-                        DEFAULTS,
-                        METHODS,
-                        PAPER_GROWTH_MS_PER_1000,
-                        PAPER_SOURCE,
-                        PAPER_TABLE1_MS,
-                        PAPER_VERTICES,
-                        PEERS,
-                        QUICK,
-                        RADIUS_A,
-                        RADIUS_B,
+    DEFAULTS,
+    METHODS,
+    PAPER_GROWTH_MS_PER_1000,
+    PAPER_SOURCE,
+    PAPER_TABLE1_MS,
+    PAPER_VERTICES,
+    PEERS,
+    QUICK,
+    RADIUS_A,
+    RADIUS_B,
 )
 from .files import write_study
 from .plots import plot_study
@@ -31,9 +31,24 @@ from .report import format_study
 from .result import StudyResult
 from .run import run_study
 
-__all__ = ["run_study", "format_study", "write_study", "plot_study", "fit_growth", "StudyResult",
-           "PAPER_TABLE1_MS", "PAPER_GROWTH_MS_PER_1000", "PAPER_VERTICES", "PAPER_SOURCE",
-           "RADIUS_A", "RADIUS_B", "METHODS", "PEERS", "DEFAULTS", "QUICK"]
+__all__ = [
+    "run_study",
+    "format_study",
+    "write_study",
+    "plot_study",
+    "fit_growth",
+    "StudyResult",
+    "PAPER_TABLE1_MS",
+    "PAPER_GROWTH_MS_PER_1000",
+    "PAPER_VERTICES",
+    "PAPER_SOURCE",
+    "RADIUS_A",
+    "RADIUS_B",
+    "METHODS",
+    "PEERS",
+    "DEFAULTS",
+    "QUICK",
+]
 
 #: The name the LP adjudication had in the single-module version (tests/test_study.py uses it).
 _adjudicate = adjudicate

@@ -33,14 +33,11 @@ def adjudicate(a, b, poses, idx, pb_hit, limit, rtol):
     """
     if importlib.util.find_spec("scipy") is None:  # exact imports scipy only when solving
         return None, None, None, None
-    from ..exact import margin_lp
+    from ..exact import lp_trust_band, margin_lp
 
     idx = idx[:limit]
     S, tol = pair_scale_tolerance(a, b, *(p[idx] for p in poses), rtol=rtol)
-    # The rule is validate's touching band (prismbatch/lab/validate/blocks.py, pair_scale_tol:
-    # max(tol, LP_REL * S), LP_REL = 1e-7): prismbatch's pair tolerance, or the LP's accuracy of
-    # about 1e-7 of the scene size where that is wider. Written again here: the two should share one home.
-    band = np.maximum(tol, 1e-7 * S)
+    band = lp_trust_band(tol, S)
     touching = right = wrong = 0
     for j, k in enumerate(idx):
         m = margin_lp(a.xy, poses[0][k], poses[1][k], b.xy, poses[2][k], poses[3][k])
@@ -65,13 +62,28 @@ def agreement_rows(a, b, P, hits, peers, case, n, lp_checks, rtol):
         exact_touch = pb_hit_miss if case in EXACT_CASES else 0
         # Exact touching hits are explained by construction; adjudicate the rest.
         rest = idx if case not in EXACT_CASES else idx[~ref[idx]]
-        chk = adjudicate(a, b, P, rest, ref, lp_checks, rtol) if (lp_checks and rest.size) \
+        chk = (
+            adjudicate(a, b, P, rest, ref, lp_checks, rtol)
+            if (lp_checks and rest.size)
             else ((0, 0, 0, 0) if lp_checks else (None, None, None, None))
-        rows.append({"case": case, "vertices": n, "peer": name, "poses": m,
-                     "pb_hits": int(ref.sum()), "peer_hits": int(h.sum()),
-                     "disagreements": int(idx.size), "pb_hit_peer_miss": pb_hit_miss,
-                     "pb_miss_peer_hit": int(idx.size) - pb_hit_miss,
-                     "touching_exact": exact_touch, "other": int(rest.size),
-                     "lp_checked": chk[0], "lp_touching": chk[1], "lp_pb_right": chk[2],
-                     "lp_pb_wrong": chk[3]})
+        )
+        rows.append(
+            {
+                "case": case,
+                "vertices": n,
+                "peer": name,
+                "poses": m,
+                "pb_hits": int(ref.sum()),
+                "peer_hits": int(h.sum()),
+                "disagreements": int(idx.size),
+                "pb_hit_peer_miss": pb_hit_miss,
+                "pb_miss_peer_hit": int(idx.size) - pb_hit_miss,
+                "touching_exact": exact_touch,
+                "other": int(rest.size),
+                "lp_checked": chk[0],
+                "lp_touching": chk[1],
+                "lp_pb_right": chk[2],
+                "lp_pb_wrong": chk[3],
+            }
+        )
     return rows

@@ -62,8 +62,11 @@ def average_series(res, method, cases):
 
 def _avg_cases(res):
     """Cases of the average: the paper's 1-9 among those timed at every vertex count."""
-    ok = [c for c in res.settings["cases"]
-          if all(res.latency_us("prismbatch", c, n) is not None for n in res.settings["vertices"])]
+    ok = [
+        c
+        for c in res.settings["cases"]
+        if all(res.latency_us("prismbatch", c, n) is not None for n in res.settings["vertices"])
+    ]
     paper = [c for c in ok if c in PAPER_CASES]
     return paper or ok
 
@@ -83,9 +86,17 @@ def growth_rows(res):
         if len(pts) >= 2:
             fits[key] = fit_growth(list(pts), list(pts.values())) + (len(pts),)
     for (method, name), (slope, icpt, r2, k) in fits.items():
-        row = {"method": method, "series": name, "slope_us_per_1000": slope, "intercept_us": icpt, "r2": r2,
-               "points": k, "cases": ",".join(map(str, avg_cases)) if name == "average" else name[5:],
-               "slope_ratio_vs_fcl": None, "slope_ratio_vs_coal": None}
+        row = {
+            "method": method,
+            "series": name,
+            "slope_us_per_1000": slope,
+            "intercept_us": icpt,
+            "r2": r2,
+            "points": k,
+            "cases": ",".join(map(str, avg_cases)) if name == "average" else name[5:],
+            "slope_ratio_vs_fcl": None,
+            "slope_ratio_vs_coal": None,
+        }
         for peer in PEERS:
             other = fits.get((peer, name))
             if other is not None and other[0] > 0:
@@ -105,15 +116,23 @@ def growth_row(res, method, series="average"):
 def _table1_row(case, n, missing, t, cpu, pp, ps, disagreements):
     """One row of Table I: times ``t`` and ``cpu`` (µs by method), the paper's ms ``pp``, ``ps``."""
     return {
-        "case": case, "vertices": n, "missing": missing,
-        "prismbatch_us": t["prismbatch"], "prismbatch_batch1_us": t["prismbatch_batch1"],
-        "fcl_us": t["fcl"], "coal_us": t["coal"],
-        "pb_over_fcl": _ratio(t["prismbatch"], t["fcl"]), "pb_over_coal": _ratio(t["prismbatch"], t["coal"]),
+        "case": case,
+        "vertices": n,
+        "missing": missing,
+        "prismbatch_us": t["prismbatch"],
+        "prismbatch_batch1_us": t["prismbatch_batch1"],
+        "fcl_us": t["fcl"],
+        "coal_us": t["coal"],
+        "pb_over_fcl": _ratio(t["prismbatch"], t["fcl"]),
+        "pb_over_coal": _ratio(t["prismbatch"], t["coal"]),
         "paper_projection_us": None if pp is None else 1e3 * pp,
         "paper_swift_us": None if ps is None else 1e3 * ps,
         "paper_ratio": _ratio(pp, ps),
-        "fcl_disagreements": disagreements.get("fcl"), "coal_disagreements": disagreements.get("coal"),
-        "prismbatch_cpu_us": cpu["prismbatch"], "fcl_cpu_us": cpu["fcl"], "coal_cpu_us": cpu["coal"],
+        "fcl_disagreements": disagreements.get("fcl"),
+        "coal_disagreements": disagreements.get("coal"),
+        "prismbatch_cpu_us": cpu["prismbatch"],
+        "fcl_cpu_us": cpu["fcl"],
+        "coal_cpu_us": cpu["coal"],
     }
 
 
@@ -125,13 +144,25 @@ def table1_rows(res):
         t = {m: res.latency_us(m, case, n) for m in METHODS}
         cpu = {m: res.latency_us(m, case, n, "thread_cpu_median_us") for m in METHODS}
         ag = {r["peer"]: r["disagreements"] for r in res.agreement if r["case"] == case and r["vertices"] == n}
-        rows.append(_table1_row(case, n, t["prismbatch"] is None, t, cpu, PAPER_TABLE1_MS["projection"].get(case),
-                                PAPER_TABLE1_MS["swift"].get(case), ag))
+        rows.append(
+            _table1_row(
+                case,
+                n,
+                t["prismbatch"] is None,
+                t,
+                cpu,
+                PAPER_TABLE1_MS["projection"].get(case),
+                PAPER_TABLE1_MS["swift"].get(case),
+                ag,
+            )
+        )
     avg_cases = [c for c in _avg_cases(res) if res.latency_us("prismbatch", c, n) is not None]
     if avg_cases:
         mean = {m: _mean_or_none([res.latency_us(m, c, n) for c in avg_cases]) for m in METHODS}
-        cpu = {k: _mean_or_none([res.latency_us(k, c, n, "thread_cpu_median_us") for c in avg_cases])
-               for k in ("prismbatch", "fcl", "coal")}
+        cpu = {
+            k: _mean_or_none([res.latency_us(k, c, n, "thread_cpu_median_us") for c in avg_cases])
+            for k in ("prismbatch", "fcl", "coal")
+        }
         paper_cases = [c for c in avg_cases if c in PAPER_CASES]
         pp = _mean_or_none([PAPER_TABLE1_MS["projection"][c] for c in paper_cases])
         ps = _mean_or_none([PAPER_TABLE1_MS["swift"][c] for c in paper_cases])

@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 #: Where the paper's numbers come from.
-PAPER_SOURCE = ("Efficient Collision Detection and Detach Control for Convex Prisms in Precision "
-                "Manipulation: Table I (3600-vertex end faces, Intel i3 3.30 GHz, average ms per query, "
-                "100 poses per case) and Sec. VI-A / Fig. 7 (growth per 1000 vertices)")
+PAPER_SOURCE = (
+    "Efficient Collision Detection and Detach Control for Convex Prisms in Precision "
+    "Manipulation: Table I (3600-vertex end faces, Intel i3 3.30 GHz, average ms per query, "
+    "100 poses per case) and Sec. VI-A / Fig. 7 (growth per 1000 vertices)"
+)
 
 #: The paper's Table I, ms per query at 3600 vertices, cases 1-9.
 PAPER_TABLE1_MS = {

@@ -15,18 +15,79 @@ from .plots import plot_study
 from .report import markdown
 from .result import StudyResult
 
-_LAT_COLS = ("case", "vertices", "method", "median_us", "min_us", "q1_us", "q3_us", "max_us",
-             "thread_cpu_median_us", "poses", "repeats", "hits", "other_cpus")
-_THR_COLS = ("case", "vertices", "mode", "threads", "pairs", "median_pairs_per_s", "min_pairs_per_s",
-             "max_pairs_per_s", "repeats")
-_GRO_COLS = ("method", "series", "cases", "slope_us_per_1000", "intercept_us", "r2", "points",
-             "slope_ratio_vs_fcl", "slope_ratio_vs_coal")
-_T1_COLS = ("case", "vertices", "missing", "prismbatch_us", "prismbatch_batch1_us", "fcl_us", "coal_us",
-            "pb_over_fcl", "pb_over_coal", "paper_projection_us", "paper_swift_us", "paper_ratio",
-            "fcl_disagreements", "coal_disagreements", "prismbatch_cpu_us", "fcl_cpu_us", "coal_cpu_us")
-_AGR_COLS = ("case", "vertices", "peer", "poses", "pb_hits", "peer_hits", "disagreements", "pb_hit_peer_miss",
-             "pb_miss_peer_hit", "touching_exact", "other", "lp_checked", "lp_touching", "lp_pb_right",
-             "lp_pb_wrong")
+_LAT_COLS = (
+    "case",
+    "vertices",
+    "method",
+    "median_us",
+    "min_us",
+    "q1_us",
+    "q3_us",
+    "max_us",
+    "thread_cpu_median_us",
+    "poses",
+    "repeats",
+    "hits",
+    "other_cpus",
+)
+_THR_COLS = (
+    "case",
+    "vertices",
+    "mode",
+    "threads",
+    "pairs",
+    "median_pairs_per_s",
+    "min_pairs_per_s",
+    "max_pairs_per_s",
+    "repeats",
+)
+_GRO_COLS = (
+    "method",
+    "series",
+    "cases",
+    "slope_us_per_1000",
+    "intercept_us",
+    "r2",
+    "points",
+    "slope_ratio_vs_fcl",
+    "slope_ratio_vs_coal",
+)
+_T1_COLS = (
+    "case",
+    "vertices",
+    "missing",
+    "prismbatch_us",
+    "prismbatch_batch1_us",
+    "fcl_us",
+    "coal_us",
+    "pb_over_fcl",
+    "pb_over_coal",
+    "paper_projection_us",
+    "paper_swift_us",
+    "paper_ratio",
+    "fcl_disagreements",
+    "coal_disagreements",
+    "prismbatch_cpu_us",
+    "fcl_cpu_us",
+    "coal_cpu_us",
+)
+_AGR_COLS = (
+    "case",
+    "vertices",
+    "peer",
+    "poses",
+    "pb_hits",
+    "peer_hits",
+    "disagreements",
+    "pb_hit_peer_miss",
+    "pb_miss_peer_hit",
+    "touching_exact",
+    "other",
+    "lp_checked",
+    "lp_touching",
+    "lp_pb_right",
+    "lp_pb_wrong",
+)
 
 
 def _cell(v):
@@ -64,23 +125,41 @@ def write_study(result, out_dir, *, figures=True):
         raise TypeError(f"result must be a StudyResult, got {type(result).__name__}")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    paths = {"table1": write_csv(out / "study_table1.csv", _T1_COLS, _rows(result.table1, _T1_COLS)),
-             "latency": write_csv(out / "study_latency.csv", _LAT_COLS, _rows(result.latency, _LAT_COLS)),
-             "throughput": write_csv(out / "study_throughput.csv", _THR_COLS, _rows(result.throughput, _THR_COLS)),
-             "growth": write_csv(out / "study_growth.csv", _GRO_COLS, _rows(result.growth, _GRO_COLS)),
-             "agreement": write_csv(out / "study_agreement.csv", _AGR_COLS, _rows(result.agreement, _AGR_COLS)),
-             "json": str(out / "study.json"), "markdown": str(out / "study.md"), "figures": []}
+    paths = {
+        "table1": write_csv(out / "study_table1.csv", _T1_COLS, _rows(result.table1, _T1_COLS)),
+        "latency": write_csv(out / "study_latency.csv", _LAT_COLS, _rows(result.latency, _LAT_COLS)),
+        "throughput": write_csv(out / "study_throughput.csv", _THR_COLS, _rows(result.throughput, _THR_COLS)),
+        "growth": write_csv(out / "study_growth.csv", _GRO_COLS, _rows(result.growth, _GRO_COLS)),
+        "agreement": write_csv(out / "study_agreement.csv", _AGR_COLS, _rows(result.agreement, _AGR_COLS)),
+        "json": str(out / "study.json"),
+        "markdown": str(out / "study.md"),
+        "figures": [],
+    }
     if figures:
         paths["figures"] = plot_study(result, out)
-    meta = run_metadata(description="prismbatch timing study vs python-fcl and coal (paper Table I, Fig. 7)",
-                        settings=result.settings, methods=result.methods, method_descriptions=METHODS,
-                        compile_s=result.compile, environment=result.environment, notes=result.notes,
-                        missing=result.missing, table1=result.table1, growth=result.growth,
-                        paper={"source": PAPER_SOURCE, "table1_ms": PAPER_TABLE1_MS,
-                               "growth_ms_per_1000": PAPER_GROWTH_MS_PER_1000, "vertices": PAPER_VERTICES},
-                        cases={int(k): v for k, v in CASES.items()},
-                        files={k: (os.path.basename(v) if isinstance(v, str) else [os.path.basename(x) for x in v])
-                               for k, v in paths.items()})
+    meta = run_metadata(
+        description="prismbatch timing study vs python-fcl and coal (paper Table I, Fig. 7)",
+        settings=result.settings,
+        methods=result.methods,
+        method_descriptions=METHODS,
+        compile_s=result.compile,
+        environment=result.environment,
+        notes=result.notes,
+        missing=result.missing,
+        table1=result.table1,
+        growth=result.growth,
+        paper={
+            "source": PAPER_SOURCE,
+            "table1_ms": PAPER_TABLE1_MS,
+            "growth_ms_per_1000": PAPER_GROWTH_MS_PER_1000,
+            "vertices": PAPER_VERTICES,
+        },
+        cases={int(k): v for k, v in CASES.items()},
+        files={
+            k: (os.path.basename(v) if isinstance(v, str) else [os.path.basename(x) for x in v])
+            for k, v in paths.items()
+        },
+    )
     write_json(paths["json"], meta)
     with open(paths["markdown"], "w", encoding="utf-8") as fh:
         fh.write(markdown(result, paths))

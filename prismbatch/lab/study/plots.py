@@ -10,8 +10,7 @@ from .constants import PAPER_GROWTH_MS_PER_1000, PEERS
 from .report import pct
 
 _SHORT = {"fcl": "FCL", "coal": "coal"}
-_METHOD_STYLE = {"prismbatch": ("C0", "o"), "prismbatch_batch1": ("C9", "v"), "fcl": ("C3", "s"),
-                 "coal": ("C2", "^")}
+_METHOD_STYLE = {"prismbatch": ("C0", "o"), "prismbatch_batch1": ("C9", "v"), "fcl": ("C3", "s"), "coal": ("C2", "^")}
 
 
 def _case_colour(case):
@@ -30,7 +29,7 @@ def _log_axes(ax, x=True, y=True):
             setter("log")
             axis.set_major_formatter(fmt)
             # Label the 2 and 5 minor ticks only when a decade or less is shown.
-            lo, hi = (ax.get_xlim() if axis is ax.xaxis else ax.get_ylim())
+            lo, hi = ax.get_xlim() if axis is ax.xaxis else ax.get_ylim()
             if lo > 0 and hi / lo < 30:
                 axis.set_minor_locator(LogLocator(subs=(2.0, 5.0)))
                 axis.set_minor_formatter(fmt)
@@ -58,14 +57,14 @@ def _legend_below(fig, ax, ncol=3):
 
 def _per_case_axes(ax, res, method):
     for case in res.settings["cases"]:
-        rows = sorted((r for r in res.latency if r["method"] == method and r["case"] == case),
-                      key=lambda r: r["vertices"])
+        rows = sorted(
+            (r for r in res.latency if r["method"] == method and r["case"] == case), key=lambda r: r["vertices"]
+        )
         if not rows:
             continue
         x = [r["vertices"] for r in rows]
         y, err = _min_max_bars(rows, "median_us", "min_us", "max_us")
-        ax.errorbar(x, y, yerr=err, marker="o", ms=3, lw=1.2, capsize=2, color=_case_colour(case),
-                    label=f"case {case}")
+        ax.errorbar(x, y, yerr=err, marker="o", ms=3, lw=1.2, capsize=2, color=_case_colour(case), label=f"case {case}")
     _vertex_axes(ax, "time per query (µs)")
     ax.set_title(res.methods.get(method, method), fontsize=10)
 
@@ -75,9 +74,11 @@ def _fig7a(res, out_dir):
     fig = new_figure(figsize=(7.5, 5.0), layout="constrained")
     ax = fig.add_subplot()
     _per_case_axes(ax, res, "prismbatch")
-    ax.set_title(f"Fig. 7a: {res.methods['prismbatch']}, one Python call per pair\n"
-                 f"median of {s['repeats']} repeats over {s['poses_per_case']} poses per case (bars: min-max)",
-                 fontsize=10)
+    ax.set_title(
+        f"Fig. 7a: {res.methods['prismbatch']}, one Python call per pair\n"
+        f"median of {s['repeats']} repeats over {s['poses_per_case']} poses per case (bars: min-max)",
+        fontsize=10,
+    )
     _legend_below(fig, ax, ncol=6)
     return save_figure(fig, out_dir, "study_fig7a_prismbatch")
 
@@ -105,8 +106,11 @@ def _growth_label(res, m, g):
     if g is not None:
         lab += f": {g['slope_us_per_1000']:+.3g} µs / 1000 vertices"
         if m.startswith("prismbatch"):
-            rat = [f"{pct(g[f'slope_ratio_vs_{p}'])} of {_SHORT[p]}'s" for p in PEERS
-                   if g[f"slope_ratio_vs_{p}"] is not None]
+            rat = [
+                f"{pct(g[f'slope_ratio_vs_{p}'])} of {_SHORT[p]}'s"
+                for p in PEERS
+                if g[f"slope_ratio_vs_{p}"] is not None
+            ]
             if rat:
                 lab += " (" + ", ".join(rat) + ")"
     return lab
@@ -132,9 +136,12 @@ def _fig7c(res, out_dir):
     pg = PAPER_GROWTH_MS_PER_1000
     ax.plot([], [], "--", color="grey", label="least-squares line t = a + b n")
     _vertex_axes(ax, "mean time per query over cases (µs)")
-    ax.set_title(f"Fig. 7c: average over cases {avg}, single-query latency\n"
-                 f"paper: projection {1e3 * pg['projection']:g} vs SWIFT {1e3 * pg['swift']:g} µs / 1000 vertices "
-                 f"({pct(pg['projection'] / pg['swift'])})", fontsize=10)
+    ax.set_title(
+        f"Fig. 7c: average over cases {avg}, single-query latency\n"
+        f"paper: projection {1e3 * pg['projection']:g} vs SWIFT {1e3 * pg['swift']:g} µs / 1000 vertices "
+        f"({pct(pg['projection'] / pg['swift'])})",
+        fontsize=10,
+    )
     _legend_below(fig, ax, ncol=1)
     return save_figure(fig, out_dir, "study_fig7c_average")
 
@@ -143,17 +150,28 @@ def _table1_bars(res, out_dir):
     rows = [r for r in res.table1 if isinstance(r["case"], int)]
     fig = new_figure(figsize=(9.0, 5.0), layout="constrained")
     ax = fig.add_subplot()
-    bars = [("prismbatch_us", res.methods.get("prismbatch"), "C0", None),
-            ("fcl_us", res.methods.get("fcl"), "C3", None), ("coal_us", res.methods.get("coal"), "C2", None),
-            ("paper_projection_us", "paper: projection (i3 3.3 GHz)", "C0", "//"),
-            ("paper_swift_us", "paper: SWIFT (i3 3.3 GHz)", "C3", "//")]
+    bars = [
+        ("prismbatch_us", res.methods.get("prismbatch"), "C0", None),
+        ("fcl_us", res.methods.get("fcl"), "C3", None),
+        ("coal_us", res.methods.get("coal"), "C2", None),
+        ("paper_projection_us", "paper: projection (i3 3.3 GHz)", "C0", "//"),
+        ("paper_swift_us", "paper: SWIFT (i3 3.3 GHz)", "C3", "//"),
+    ]
     bars = [b for b in bars if b[1] is not None]
     w = 0.8 / len(bars)
     x = np.arange(len(rows))
     for i, (key, lab, col, hatch) in enumerate(bars):
         y = np.array([np.nan if r[key] is None else r[key] for r in rows], dtype=float)
-        ax.bar(x + (i - (len(bars) - 1) / 2) * w, y, w, label=lab, color="white" if hatch else col,
-               edgecolor=col, hatch=hatch, lw=1)
+        ax.bar(
+            x + (i - (len(bars) - 1) / 2) * w,
+            y,
+            w,
+            label=lab,
+            color="white" if hatch else col,
+            edgecolor=col,
+            hatch=hatch,
+            lw=1,
+        )
     for i, r in enumerate(rows):
         if r["missing"]:
             ax.text(x[i], 1.0, "missing", rotation=90, ha="center", va="bottom", fontsize=8)
@@ -162,8 +180,11 @@ def _table1_bars(res, out_dir):
     ax.set_xlabel("case")
     ax.set_ylabel("time per query (µs)")
     ax.grid(True, axis="y", which="both", alpha=0.3)
-    ax.set_title(f"Table I at {res.settings['table_vertices']} vertices: single-query latency (this machine) "
-                 "and the paper's numbers", fontsize=10)
+    ax.set_title(
+        f"Table I at {res.settings['table_vertices']} vertices: single-query latency (this machine) "
+        "and the paper's numbers",
+        fontsize=10,
+    )
     ax.legend(fontsize=8, ncol=2, loc="upper left")
     ax.set_ylim(top=ax.get_ylim()[1] * 8)  # room for the legend above the bars
     return save_figure(fig, out_dir, "study_table1")
@@ -174,21 +195,36 @@ def _throughput_figure(res, out_dir):
 
     fig = new_figure(figsize=(7.5, 5.0), layout="constrained")
     ax = fig.add_subplot()
-    style = {"prismbatch_1t": ("C0", "o", "prismbatch {v} collide, 1 thread"),
-             "prismbatch_allt": ("C1", "D", "prismbatch {v} collide, {k} threads"),
-             "fcl_loop": ("C3", "s", "{fcl}, Python loop"), "coal_loop": ("C2", "^", "{coal}, Python loop")}
+    style = {
+        "prismbatch_1t": ("C0", "o", "prismbatch {v} collide, 1 thread"),
+        "prismbatch_allt": ("C1", "D", "prismbatch {v} collide, {k} threads"),
+        "fcl_loop": ("C3", "s", "{fcl}, Python loop"),
+        "coal_loop": ("C2", "^", "{coal}, Python loop"),
+    }
     for mode, (col, mk, lab) in style.items():
-        rows = sorted((r for r in res.throughput if r["case"] == "all" and r["mode"] == mode),
-                      key=lambda r: r["vertices"])
+        rows = sorted(
+            (r for r in res.throughput if r["case"] == "all" and r["mode"] == mode), key=lambda r: r["vertices"]
+        )
         if not rows:
             continue
         y, err = _min_max_bars(rows, "median_pairs_per_s", "min_pairs_per_s", "max_pairs_per_s")
-        ax.errorbar([r["vertices"] for r in rows], y, yerr=err, color=col, marker=mk, capsize=2,
-                    label=lab.format(v=__version__, k=rows[0]["threads"], fcl=res.methods.get("fcl"),
-                                     coal=res.methods.get("coal")))
+        ax.errorbar(
+            [r["vertices"] for r in rows],
+            y,
+            yerr=err,
+            color=col,
+            marker=mk,
+            capsize=2,
+            label=lab.format(
+                v=__version__, k=rows[0]["threads"], fcl=res.methods.get("fcl"), coal=res.methods.get("coal")
+            ),
+        )
     _vertex_axes(ax, "throughput (pose pairs / s)")
-    ax.set_title(f"Batch throughput on all cases' poses (prismbatch: {res.settings['batch_pairs']} pairs per call; "
-                 "bars: min-max)", fontsize=10)
+    ax.set_title(
+        f"Batch throughput on all cases' poses (prismbatch: {res.settings['batch_pairs']} pairs per call; "
+        "bars: min-max)",
+        fontsize=10,
+    )
     _legend_below(fig, ax, ncol=2)
     return save_figure(fig, out_dir, "study_throughput")
 

@@ -36,10 +36,12 @@ def format_study(res):
     list of str
     """
     s = res.settings
-    L = [f"prismbatch timing study: regular n-gons of circumradius {s['radius_a']:g} (a) and {s['radius_b']:g} (b); "
-         f"n = {', '.join(map(str, s['vertices']))}; cases {', '.join(map(str, s['cases']))}; "
-         f"{s['poses_per_case']} poses per case (casegen, half hits), {s['repeats']} repeats after a warm-up; "
-         f"seed {s['seed']}"]
+    L = [
+        f"prismbatch timing study: regular n-gons of circumradius {s['radius_a']:g} (a) and {s['radius_b']:g} (b); "
+        f"n = {', '.join(map(str, s['vertices']))}; cases {', '.join(map(str, s['cases']))}; "
+        f"{s['poses_per_case']} poses per case (casegen, half hits), {s['repeats']} repeats after a warm-up; "
+        f"seed {s['seed']}"
+    ]
     L.append("methods: " + "; ".join(f"{k} = {v}" for k, v in res.methods.items()))
     L.append("")
     L += _table1_lines(res)
@@ -54,38 +56,48 @@ def format_study(res):
 
 
 def _table1_lines(res):
-    L = [f"Table I at {res.settings['table_vertices']} vertices: single-query latency, µs per query (median of "
-         "repeats); paper in µs (ms x 1000)",
-         f"{'case':>8} {'pb':>8} {'pb(b1)':>8} {'FCL':>8} {'coal':>8} {'pb/FCL':>8} {'pb/coal':>8}"
-         f" | {'paper':>7} {'SWIFT':>7} {'pap/SW':>7} | disagree FCL/coal"]
+    L = [
+        f"Table I at {res.settings['table_vertices']} vertices: single-query latency, µs per query (median of "
+        "repeats); paper in µs (ms x 1000)",
+        f"{'case':>8} {'pb':>8} {'pb(b1)':>8} {'FCL':>8} {'coal':>8} {'pb/FCL':>8} {'pb/coal':>8}"
+        f" | {'paper':>7} {'SWIFT':>7} {'pap/SW':>7} | disagree FCL/coal",
+    ]
     for r in res.table1:
         if r["missing"]:
             L.append(f"{str(r['case']):>8}   missing (casegen could not build it)")
             continue
-        L.append(f"{str(r['case']).replace('average ', 'avg '):>8} {fmt(r['prismbatch_us']):>8} "
-                 f"{fmt(r['prismbatch_batch1_us']):>8} {fmt(r['fcl_us']):>8} {fmt(r['coal_us']):>8} "
-                 f"{pct(r['pb_over_fcl']):>8} {pct(r['pb_over_coal']):>8} | {fmt(r['paper_projection_us']):>7} "
-                 f"{fmt(r['paper_swift_us']):>7} {pct(r['paper_ratio']):>7} | "
-                 f"{fmt(r['fcl_disagreements'], 'd')}/{fmt(r['coal_disagreements'], 'd')}")
+        L.append(
+            f"{str(r['case']).replace('average ', 'avg '):>8} {fmt(r['prismbatch_us']):>8} "
+            f"{fmt(r['prismbatch_batch1_us']):>8} {fmt(r['fcl_us']):>8} {fmt(r['coal_us']):>8} "
+            f"{pct(r['pb_over_fcl']):>8} {pct(r['pb_over_coal']):>8} | {fmt(r['paper_projection_us']):>7} "
+            f"{fmt(r['paper_swift_us']):>7} {pct(r['paper_ratio']):>7} | "
+            f"{fmt(r['fcl_disagreements'], 'd')}/{fmt(r['coal_disagreements'], 'd')}"
+        )
     return L
 
 
 def _growth_lines(res):
     s = res.settings
     pg = PAPER_GROWTH_MS_PER_1000
-    L = [f"Growth per 1000 vertices (least-squares line over n = {', '.join(map(str, s['vertices']))}; "
-         f"average over cases {next((r['cases'] for r in res.growth if r['series'] == 'average'), '-')}):"]
+    L = [
+        f"Growth per 1000 vertices (least-squares line over n = {', '.join(map(str, s['vertices']))}; "
+        f"average over cases {next((r['cases'] for r in res.growth if r['series'] == 'average'), '-')}):"
+    ]
     for m in res.methods:
         g = growth_row(res, m)
         if g is None:
             continue
         extra = ""
         if m.startswith("prismbatch"):
-            extra = (f"; slope ratio vs FCL {pct(g['slope_ratio_vs_fcl'])}, vs coal {pct(g['slope_ratio_vs_coal'])}")
-        L.append(f"   {res.methods[m]}: {g['slope_us_per_1000']:+.3g} µs per 1000 vertices, intercept "
-                 f"{g['intercept_us']:.3g} µs, r² {fmt(g['r2'], '.2f')}{extra}")
-    L.append(f"   paper: projection {1e3 * pg['projection']:g} µs vs SWIFT {1e3 * pg['swift']:g} µs "
-             f"per 1000 vertices = {pct(pg['projection'] / pg['swift'])}")
+            extra = f"; slope ratio vs FCL {pct(g['slope_ratio_vs_fcl'])}, vs coal {pct(g['slope_ratio_vs_coal'])}"
+        L.append(
+            f"   {res.methods[m]}: {g['slope_us_per_1000']:+.3g} µs per 1000 vertices, intercept "
+            f"{g['intercept_us']:.3g} µs, r² {fmt(g['r2'], '.2f')}{extra}"
+        )
+    L.append(
+        f"   paper: projection {1e3 * pg['projection']:g} µs vs SWIFT {1e3 * pg['swift']:g} µs "
+        f"per 1000 vertices = {pct(pg['projection'] / pg['swift'])}"
+    )
     return L
 
 
@@ -98,52 +110,70 @@ def _throughput_lines(res):
             continue
         parts = []
         for mode, r in row.items():
-            lab = {"prismbatch_1t": "pb 1 thread", "prismbatch_allt": f"pb {r['threads']} threads",
-                   "fcl_loop": "FCL loop", "coal_loop": "coal loop"}[mode]
+            lab = {
+                "prismbatch_1t": "pb 1 thread",
+                "prismbatch_allt": f"pb {r['threads']} threads",
+                "fcl_loop": "FCL loop",
+                "coal_loop": "coal loop",
+            }[mode]
             parts.append(f"{lab} {r['median_pairs_per_s']:.3g}")
         L.append(f"   n={nn}: " + ", ".join(parts))
-    L.append("   (peers: collide_batch is a Python loop; pb: Collider.collide on poses tiled to "
-             f"{s['batch_pairs']} pairs)")
+    L.append(
+        f"   (peers: collide_batch is a Python loop; pb: Collider.collide on poses tiled to {s['batch_pairs']} pairs)"
+    )
     return L
 
 
 def _agreement_lines(res):
     dis = {}
     for r in res.agreement:
-        d = dis.setdefault(r["peer"], {"n": 0, "dis": 0, "touch": 0, "other": 0, "lpt": 0, "lpr": 0, "lpw": 0,
-                                       "lpc": 0})
+        d = dis.setdefault(
+            r["peer"], {"n": 0, "dis": 0, "touch": 0, "other": 0, "lpt": 0, "lpr": 0, "lpw": 0, "lpc": 0}
+        )
         d["n"] += r["poses"]
         d["dis"] += r["disagreements"]
         d["touch"] += r["touching_exact"]
         d["other"] += r["other"]
         for k, c in (("lpc", "lp_checked"), ("lpt", "lp_touching"), ("lpr", "lp_pb_right"), ("lpw", "lp_pb_wrong")):
             d[k] += r[c] or 0
-    return [f"Agreement with {peer}: {d['dis']} of {d['n']} poses disagree; {d['touch']} are exact touching "
-            f"contacts (touching within tol: prismbatch hit, {peer} miss); {d['other']} others, of which "
-            f"{d['lpc']} checked by LP: {d['lpt']} in the touching band, prismbatch right {d['lpr']}, "
-            f"wrong {d['lpw']}" for peer, d in dis.items()]
+    return [
+        f"Agreement with {peer}: {d['dis']} of {d['n']} poses disagree; {d['touch']} are exact touching "
+        f"contacts (touching within tol: prismbatch hit, {peer} miss); {d['other']} others, of which "
+        f"{d['lpc']} checked by LP: {d['lpt']} in the touching band, prismbatch right {d['lpr']}, "
+        f"wrong {d['lpw']}"
+        for peer, d in dis.items()
+    ]
 
 
 def _run_lines(res):
     """Missing cells, first-call times, notes, machine load."""
     L = [f"missing: n={m['vertices']} case {m['case']}: {m['reason']}" for m in res.missing]
     c = res.compile
-    L.append(f"First call (compile or cache load, excluded): collide_pair {c['collide_pair_s']:.2f} s, "
-             f"collide serial {c['collide_serial_s']:.2f} s, parallel {c['collide_parallel_s']:.2f} s "
-             f"(a warm call: {1e3 * c['second_serial_call_s']:.2f} ms)")
+    L.append(
+        f"First call (compile or cache load, excluded): collide_pair {c['collide_pair_s']:.2f} s, "
+        f"collide serial {c['collide_serial_s']:.2f} s, parallel {c['collide_parallel_s']:.2f} s "
+        f"(a warm call: {1e3 * c['second_serial_call_s']:.2f} ms)"
+    )
     L += [f"note: {nt}" for nt in res.notes]
     busy = [r["other_cpus"] for r in res.latency if r.get("other_cpus") is not None]
     if busy:
         worst = max(busy)
         crowded = sum(b > 0.5 for b in busy) / len(busy)
-        L.append(f"other processes while timing: up to {worst:.1f} CPUs busy (of {os.cpu_count()}); "
-                 f"{100 * crowded:.0f} % of the cells had more than 0.5 CPU busy"
-                 + (" -- wall-clock latencies are inflated there; compare thread_cpu_median_us in "
-                    "study_latency.csv" if worst > 0.5 else ""))
+        L.append(
+            f"other processes while timing: up to {worst:.1f} CPUs busy (of {os.cpu_count()}); "
+            f"{100 * crowded:.0f} % of the cells had more than 0.5 CPU busy"
+            + (
+                " -- wall-clock latencies are inflated there; compare thread_cpu_median_us in study_latency.csv"
+                if worst > 0.5
+                else ""
+            )
+        )
     e = res.environment
     if e.get("loadavg_start") is not None:
-        L.append(f"load average (1 min) at start {e['loadavg_start'][0]:.2f}, at end {e['loadavg_end'][0]:.2f}; "
-                 f"{e['numba_threads']} Numba threads; study took {e['study_seconds']:.0f} s")
+        L.append(
+            f"load average (1 min) at start {e['loadavg_start'][0]:.2f}, at end {e['loadavg_end'][0]:.2f}; "
+            f"{e['numba_threads']} Numba threads; study took {e['study_seconds']:.0f} s"
+        )
     return L
 
 
@@ -153,34 +183,54 @@ def markdown(res, paths):
     L = ["# Timing study: prismbatch vs python-fcl and coal (paper Table I, Fig. 7)", ""]
     L += ["```", *format_study(res), "```", ""]
     n = s["table_vertices"]
-    L += [f"## Table I at {n} vertices (µs per query; ratios next to the paper's)", "",
-          "| case | prismbatch | FCL | coal | pb / FCL | pb / coal | paper projection | paper SWIFT | "
-          "paper proj / SWIFT |", "|---|---|---|---|---|---|---|---|---|"]
+    L += [
+        f"## Table I at {n} vertices (µs per query; ratios next to the paper's)",
+        "",
+        "| case | prismbatch | FCL | coal | pb / FCL | pb / coal | paper projection | paper SWIFT | "
+        "paper proj / SWIFT |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
     for r in res.table1:
         if r["missing"]:
             L.append(f"| {r['case']} | missing | | | | | | | |")
             continue
-        L.append(f"| {r['case']} | {fmt(r['prismbatch_us'])} | {fmt(r['fcl_us'])} | {fmt(r['coal_us'])} | "
-                 f"{pct(r['pb_over_fcl'])} | {pct(r['pb_over_coal'])} | {fmt(r['paper_projection_us'])} | "
-                 f"{fmt(r['paper_swift_us'])} | {pct(r['paper_ratio'])} |")
-    L += ["", "## Growth per 1000 vertices (average over cases)", "",
-          "| method | slope (µs / 1000 vertices) | intercept (µs) | r² | slope / FCL's | slope / coal's |",
-          "|---|---|---|---|---|---|"]
+        L.append(
+            f"| {r['case']} | {fmt(r['prismbatch_us'])} | {fmt(r['fcl_us'])} | {fmt(r['coal_us'])} | "
+            f"{pct(r['pb_over_fcl'])} | {pct(r['pb_over_coal'])} | {fmt(r['paper_projection_us'])} | "
+            f"{fmt(r['paper_swift_us'])} | {pct(r['paper_ratio'])} |"
+        )
+    L += [
+        "",
+        "## Growth per 1000 vertices (average over cases)",
+        "",
+        "| method | slope (µs / 1000 vertices) | intercept (µs) | r² | slope / FCL's | slope / coal's |",
+        "|---|---|---|---|---|---|",
+    ]
     for m in res.methods:
         g = growth_row(res, m)
         if g is not None:
             pbm = m.startswith("prismbatch")
-            L.append(f"| {res.methods[m]} | {g['slope_us_per_1000']:.3g} | {g['intercept_us']:.3g} | "
-                     f"{fmt(g['r2'], '.2f')} | {pct(g['slope_ratio_vs_fcl']) if pbm else ''} | "
-                     f"{pct(g['slope_ratio_vs_coal']) if pbm else ''} |")
+            L.append(
+                f"| {res.methods[m]} | {g['slope_us_per_1000']:.3g} | {g['intercept_us']:.3g} | "
+                f"{fmt(g['r2'], '.2f')} | {pct(g['slope_ratio_vs_fcl']) if pbm else ''} | "
+                f"{pct(g['slope_ratio_vs_coal']) if pbm else ''} |"
+            )
     pg = PAPER_GROWTH_MS_PER_1000
-    L.append(f"| paper: projection / SWIFT | {1e3 * pg['projection']:g} / {1e3 * pg['swift']:g} | | | "
-             f"{pct(pg['projection'] / pg['swift'])} | |")
-    L += ["", f"Paper numbers: {PAPER_SOURCE}.", "",
-          "Single-query latency = one Python call per pair; batch throughput = one vectorised call "
-          "(kept apart; see `docs/methods/study.md`). Timings on a shared machine are noisy.", ""]
+    L.append(
+        f"| paper: projection / SWIFT | {1e3 * pg['projection']:g} / {1e3 * pg['swift']:g} | | | "
+        f"{pct(pg['projection'] / pg['swift'])} | |"
+    )
+    L += [
+        "",
+        f"Paper numbers: {PAPER_SOURCE}.",
+        "",
+        "Single-query latency = one Python call per pair; batch throughput = one vectorised call "
+        "(kept apart; see `docs/methods/study.md`). Timings on a shared machine are noisy.",
+        "",
+    ]
     if paths.get("figures"):
         L += ["## Figures", ""] + [f"![{Path(f).stem}]({Path(f).name})" for f in paths["figures"] if f.endswith(".png")]
-    L += ["", "## Files", ""] + [f"- [{Path(v).name}]({Path(v).name})" for k, v in paths.items()
-                                  if isinstance(v, str) and k != "markdown"]
+    L += ["", "## Files", ""] + [
+        f"- [{Path(v).name}]({Path(v).name})" for k, v in paths.items() if isinstance(v, str) and k != "markdown"
+    ]
     return "\n".join(L) + "\n"

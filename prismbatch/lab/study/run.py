@@ -28,8 +28,9 @@ from .timing import compile_times, cpu_snapshot, other_load, stats, timed_loops
 # ---------------------------------------------------------------------------
 
 
-def _check_arguments(vertices, cases, poses_per_case, repeats, batch_pairs, peers, seed, quick, lp_checks,
-                     table_vertices):
+def _check_arguments(
+    vertices, cases, poses_per_case, repeats, batch_pairs, peers, seed, quick, lp_checks, table_vertices
+):
     """The arguments of :func:`run_study` checked, with the ``quick`` or full defaults filled in."""
     base = QUICK if quick else DEFAULTS
     vertices = check_int_tuple(base["vertices"] if vertices is None else vertices, "vertices", 3)
@@ -37,8 +38,7 @@ def _check_arguments(vertices, cases, poses_per_case, repeats, batch_pairs, peer
     bad = [c for c in cases if c not in CASE_NUMBERS]
     if bad:
         raise ValueError(f"cases must be among {CASE_NUMBERS}, got {bad}")
-    poses_per_case = check_int(base["poses_per_case"] if poses_per_case is None else poses_per_case,
-                                   "poses_per_case")
+    poses_per_case = check_int(base["poses_per_case"] if poses_per_case is None else poses_per_case, "poses_per_case")
     repeats = check_int(base["repeats"] if repeats is None else repeats, "repeats")
     batch_pairs = check_int(base["batch_pairs"] if batch_pairs is None else batch_pairs, "batch_pairs")
     if isinstance(peers, str):
@@ -69,10 +69,12 @@ def _versions():
 
 
 def _method_labels(versions):
-    return {"prismbatch": f"prismbatch {versions['prismbatch']} collide_pair",
-            "prismbatch_batch1": f"prismbatch {versions['prismbatch']} collide (batch of 1)",
-            "fcl": f"python-fcl {versions['fcl']}",
-            "coal": f"coal {versions['coal']}"}
+    return {
+        "prismbatch": f"prismbatch {versions['prismbatch']} collide_pair",
+        "prismbatch_batch1": f"prismbatch {versions['prismbatch']} collide (batch of 1)",
+        "fcl": f"python-fcl {versions['fcl']}",
+        "coal": f"coal {versions['coal']}",
+    }
 
 
 def _make_peers(names, xy_a, xy_b, length, notes):
@@ -99,6 +101,7 @@ def _pair_loop(col, pairs):
         for k, (pa, ra, pb_, rb) in enumerate(pairs):
             out[k] = cp(pa, ra, pb_, rb).hit
         return out
+
     return run
 
 
@@ -110,6 +113,7 @@ def _batch1_loop(col, ones):
         for k, (pa, ra, pb_, rb) in enumerate(ones):
             out[k] = c(pa, ra, pb_, rb).hit[0]
         return out
+
     return run
 
 
@@ -149,8 +153,7 @@ def _scene_peers(a, b, poses, peers, notes):
     """The peers of one vertex count, on stand-ins long enough for every pose of every case."""
     from ..peers import fcl_standin_length
 
-    length = max(fcl_standin_length(a.xy, b.xy, P[0][k], P[2][k])
-                 for P in poses.values() for k in range(len(P[0])))
+    length = max(fcl_standin_length(a.xy, b.xy, P[0][k], P[2][k]) for P in poses.values() for k in range(len(P[0])))
     return _make_peers(peers, a.xy, b.xy, length, notes) if peers else {}
 
 
@@ -159,7 +162,7 @@ def _latency_calls(col, built, P):
     m = len(P[0])
     f = np.ascontiguousarray
     pairs = [(f(P[0][k]), f(P[1][k]), f(P[2][k]), f(P[3][k])) for k in range(m)]
-    ones = [(f(P[0][k:k + 1]), f(P[1][k:k + 1]), f(P[2][k:k + 1]), f(P[3][k:k + 1])) for k in range(m)]
+    ones = [(f(P[0][k : k + 1]), f(P[1][k : k + 1]), f(P[2][k : k + 1]), f(P[3][k : k + 1])) for k in range(m)]
     calls = {"prismbatch": _pair_loop(col, pairs), "prismbatch_batch1": _batch1_loop(col, ones)}
     items = None
     for name, peer in built.items():
@@ -178,19 +181,39 @@ def _latency_series(calls, case, n, m, repeats):
     rows = []
     for k, tt in times.items():
         s = stats(np.asarray(tt) / m * 1e6)
-        rows.append({"case": case, "vertices": n, "method": k, "median_us": s["median"],
-                     "min_us": s["min"], "q1_us": s["q1"], "q3_us": s["q3"], "max_us": s["max"],
-                     "thread_cpu_median_us": float(np.median(cpu[k])) / m * 1e6,
-                     "poses": m, "repeats": repeats, "hits": int(hits[k].sum()),
-                     "other_cpus": other})
+        rows.append(
+            {
+                "case": case,
+                "vertices": n,
+                "method": k,
+                "median_us": s["median"],
+                "min_us": s["min"],
+                "q1_us": s["q1"],
+                "q3_us": s["q3"],
+                "max_us": s["max"],
+                "thread_cpu_median_us": float(np.median(cpu[k])) / m * 1e6,
+                "poses": m,
+                "repeats": repeats,
+                "hits": int(hits[k].sum()),
+                "other_cpus": other,
+            }
+        )
     return hits, rows
 
 
 def _throughput_row(case, n, mode, threads, pairs, seconds, repeats):
     s = stats(pairs / np.asarray(seconds))
-    return {"case": case, "vertices": n, "mode": mode, "threads": threads, "pairs": pairs,
-            "median_pairs_per_s": s["median"], "min_pairs_per_s": s["min"], "max_pairs_per_s": s["max"],
-            "repeats": repeats}
+    return {
+        "case": case,
+        "vertices": n,
+        "mode": mode,
+        "threads": threads,
+        "pairs": pairs,
+        "median_pairs_per_s": s["median"],
+        "min_pairs_per_s": s["min"],
+        "max_pairs_per_s": s["max"],
+        "repeats": repeats,
+    }
 
 
 def _throughput_pb(col, P, case, n, batch_pairs, repeats, threads):
@@ -222,8 +245,10 @@ def _measure_case(col, a, b, built, P, case, n, cfg, out):
     out.latency += rows
     ref = hits["prismbatch"]
     if not np.array_equal(hits["prismbatch_batch1"], ref):
-        out.notes.append(f"n={n} case {case}: collide on one pair and collide_pair disagree on "
-                         f"{int((hits['prismbatch_batch1'] != ref).sum())} poses")
+        out.notes.append(
+            f"n={n} case {case}: collide on one pair and collide_pair disagree on "
+            f"{int((hits['prismbatch_batch1'] != ref).sum())} poses"
+        )
     out.agreement += agreement_rows(a, b, P, hits, built, case, n, cfg["lp_checks"], col.rtol)
     out.throughput += _throughput_pb(col, P, case, n, cfg["batch_pairs"], cfg["repeats"], cfg["threads"])
 
@@ -249,8 +274,20 @@ def _measure_vertices(n, col, a, b, cfg, bar, out):
 # ---------------------------------------------------------------------------
 
 
-def run_study(*, vertices=None, cases=CASE_NUMBERS, poses_per_case=None, repeats=None, batch_pairs=None,
-              peers=PEERS, seed=0, quick=False, progress=True, lp_checks=10, table_vertices=3600):
+def run_study(
+    *,
+    vertices=None,
+    cases=CASE_NUMBERS,
+    poses_per_case=None,
+    repeats=None,
+    batch_pairs=None,
+    peers=PEERS,
+    seed=0,
+    quick=False,
+    progress=True,
+    lp_checks=10,
+    table_vertices=3600,
+):
     """Time prismbatch against python-fcl and coal per case and vertex count.
 
     Parameters
@@ -294,7 +331,8 @@ def run_study(*, vertices=None, cases=CASE_NUMBERS, poses_per_case=None, repeats
         Bad arguments (the message names the argument).
     """
     vertices, cases, poses_per_case, repeats, batch_pairs, peers = _check_arguments(
-        vertices, cases, poses_per_case, repeats, batch_pairs, peers, seed, quick, lp_checks, table_vertices)
+        vertices, cases, poses_per_case, repeats, batch_pairs, peers, seed, quick, lp_checks, table_vertices
+    )
 
     import numba
 
@@ -302,11 +340,18 @@ def run_study(*, vertices=None, cases=CASE_NUMBERS, poses_per_case=None, repeats
     labels = _method_labels(versions)
     out = _Tables()
     threads = numba.get_num_threads()
-    env = {"loadavg_start": list(os.getloadavg()) if hasattr(os, "getloadavg") else None,
-           "numba_threads": threads}
+    env = {"loadavg_start": list(os.getloadavg()) if hasattr(os, "getloadavg") else None, "numba_threads": threads}
     compile_s = compile_times()
-    cfg = {"cases": cases, "poses_per_case": poses_per_case, "repeats": repeats, "batch_pairs": batch_pairs,
-           "peers": peers, "seed": seed, "lp_checks": lp_checks, "threads": threads}
+    cfg = {
+        "cases": cases,
+        "poses_per_case": poses_per_case,
+        "repeats": repeats,
+        "batch_pairs": batch_pairs,
+        "peers": peers,
+        "seed": seed,
+        "lp_checks": lp_checks,
+        "threads": threads,
+    }
 
     rtol = 1e-9
     bar = progress_bar(len(vertices) * len(cases), enabled=progress, unit="cell", desc="study")
@@ -326,15 +371,37 @@ def run_study(*, vertices=None, cases=CASE_NUMBERS, poses_per_case=None, repeats
     for p in peers:
         if versions.get(p) is None and not any(nt.startswith(p) for nt in out.notes):
             out.notes.append(f"{p} not installed: skipped")
-    settings = {"vertices": list(vertices), "cases": list(cases), "poses_per_case": poses_per_case,
-                "repeats": repeats, "batch_pairs": batch_pairs, "peers": list(peers), "seed": seed,
-                "quick": bool(quick), "lp_checks": lp_checks, "table_vertices": table_vertices,
-                "hit_fraction": 0.5, "radius_a": RADIUS_A, "radius_b": RADIUS_B, "rtol": rtol,
-                "pose_seed_rule": "numpy.random.default_rng([seed, vertices, case])",
-                "numba_threads": threads}
-    res = StudyResult(settings=settings, methods=methods, latency=out.latency, throughput=out.throughput,
-                      agreement=out.agreement, missing=out.missing, growth=[], table1=[], compile=compile_s,
-                      notes=out.notes, environment=env)
+    settings = {
+        "vertices": list(vertices),
+        "cases": list(cases),
+        "poses_per_case": poses_per_case,
+        "repeats": repeats,
+        "batch_pairs": batch_pairs,
+        "peers": list(peers),
+        "seed": seed,
+        "quick": bool(quick),
+        "lp_checks": lp_checks,
+        "table_vertices": table_vertices,
+        "hit_fraction": 0.5,
+        "radius_a": RADIUS_A,
+        "radius_b": RADIUS_B,
+        "rtol": rtol,
+        "pose_seed_rule": "numpy.random.default_rng([seed, vertices, case])",
+        "numba_threads": threads,
+    }
+    res = StudyResult(
+        settings=settings,
+        methods=methods,
+        latency=out.latency,
+        throughput=out.throughput,
+        agreement=out.agreement,
+        missing=out.missing,
+        growth=[],
+        table1=[],
+        compile=compile_s,
+        notes=out.notes,
+        environment=env,
+    )
     res.growth = growth_rows(res)
     res.table1 = table1_rows(res)
     return res

@@ -87,8 +87,10 @@ def compile_times():
     ra = np.broadcast_to(np.diag([1.0, -1.0, -1.0]), (4, 3, 3)).copy()
     pb_ = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, -1.0], [5.0, 0.0, 0.0], [1.0, 1.0, -0.5]])
     rb = np.broadcast_to(np.eye(3), (4, 3, 3)).copy()
-    loaded = {name: bool(getattr(getattr(kernels, name, None), "signatures", None))
-              for name in ("collide_pair", "collide_serial", "collide_parallel")}
+    loaded = {
+        name: bool(getattr(getattr(kernels, name, None), "signatures", None))
+        for name in ("collide_pair", "collide_serial", "collide_parallel")
+    }
     perf = time.perf_counter
     out = {}
     t0 = perf()

@@ -24,6 +24,19 @@ from .output import format_validation, write_validation
 
 # Also importable from here, outside __all__: Block, DEGENERATE_CASES, SUMMARY_HEADER and
 # CASES_HEADER (as before the split); make_shape and residuals (internal, for the tests).
-__all__ = ["validate", "ValidationResult", "format_validation", "write_validation", "run_chunk",
-           "generate_block", "make_config", "warm", "set_numba_threads", "BLOCK_SIZE", "DISTRIBUTION_NAMES",
-           "SHAPE_KINDS", "RECORD_KINDS", "LP_REL"]
+__all__ = [
+    "validate",
+    "ValidationResult",
+    "format_validation",
+    "write_validation",
+    "run_chunk",
+    "generate_block",
+    "make_config",
+    "warm",
+    "set_numba_threads",
+    "BLOCK_SIZE",
+    "DISTRIBUTION_NAMES",
+    "SHAPE_KINDS",
+    "RECORD_KINDS",
+    "LP_REL",
+]

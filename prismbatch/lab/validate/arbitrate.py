@@ -148,31 +148,64 @@ def arbitrate(blk, tol, band, hit, case, lp_idx, dis, lp, short, c, verdicts):
     _judge_fcl(dis, lp, band, hit, case, short, exact, c, verdicts)
 
 
-def _record(cfg, blk, k, kinds, *, tol, band, scale, hit, case, contact, fcl, length, lp, lp_fin,
-           at_fault):
+def _record(cfg, blk, k, kinds, *, tol, band, scale, hit, case, contact, fcl, length, lp, lp_fin, at_fault):
     """The replay record of pair ``k`` of a block: full inputs, every answer and the verdict."""
     kinds = sorted(set(kinds), key=RECORD_KINDS.index)
     f = lambda x: None if x is None or not math.isfinite(x) else float(x)  # noqa: E731
     return {
-        "kind": kinds[0], "kinds": kinds, "at_fault": at_fault,
-        "distribution": blk.distribution, "block": blk.block, "index": int(k), "seed": cfg["seed"],
+        "kind": kinds[0],
+        "kinds": kinds,
+        "at_fault": at_fault,
+        "distribution": blk.distribution,
+        "block": blk.block,
+        "index": int(k),
+        "seed": cfg["seed"],
         "spawn_key": list(blk.spawn_key),
-        "shape_a": blk.shape_a.xy.tolist(), "shape_b": blk.shape_b.xy.tolist(),
-        "pos_a": blk.pos_a[k].tolist(), "rot_a": blk.rot_a[k].tolist(),
-        "pos_b": blk.pos_b[k].tolist(), "rot_b": blk.rot_b[k].tolist(),
-        "dtype": cfg["dtype"], "rtol": cfg["rtol"], "atol": cfg["atol"], "tol": float(tol),
-        "band": float(band), "scale": float(scale),
-        "prismbatch": {"hit": bool(hit), "case": int(case),
-                       "contact": None if contact is None else [float(x) for x in contact]},
-        "references": {"fcl": None if fcl is None else bool(fcl), "standin_length": f(length),
-                       "lp_margin": f(lp), "lp_margin_standin": f(lp_fin)},
+        "shape_a": blk.shape_a.xy.tolist(),
+        "shape_b": blk.shape_b.xy.tolist(),
+        "pos_a": blk.pos_a[k].tolist(),
+        "rot_a": blk.rot_a[k].tolist(),
+        "pos_b": blk.pos_b[k].tolist(),
+        "rot_b": blk.rot_b[k].tolist(),
+        "dtype": cfg["dtype"],
+        "rtol": cfg["rtol"],
+        "atol": cfg["atol"],
+        "tol": float(tol),
+        "band": float(band),
+        "scale": float(scale),
+        "prismbatch": {
+            "hit": bool(hit),
+            "case": int(case),
+            "contact": None if contact is None else [float(x) for x in contact],
+        },
+        "references": {
+            "fcl": None if fcl is None else bool(fcl),
+            "standin_length": f(length),
+            "lp_margin": f(lp),
+            "lp_margin_standin": f(lp_fin),
+        },
     }
 
 
 def make_records(cfg, blk, verdicts, *, S, tol, band, hit, case, contact, fcl_hit, length, lp, lp_fin):
     """The records of every flagged pair of a block, in index order."""
-    return [_record(
-        cfg, blk, k, verdicts.kinds[k], tol=tol[k], band=band[k], scale=S[k], hit=hit[k], case=case[k],
-        contact=None if contact is None or not hit[k] else contact[k],
-        fcl=None if fcl_hit[k] < 0 else bool(fcl_hit[k]), length=length[k] if fcl_hit[k] >= 0 else None,
-        lp=lp[k], lp_fin=lp_fin[k], at_fault=verdicts.fault.get(k)) for k in sorted(verdicts.kinds)]
+    return [
+        _record(
+            cfg,
+            blk,
+            k,
+            verdicts.kinds[k],
+            tol=tol[k],
+            band=band[k],
+            scale=S[k],
+            hit=hit[k],
+            case=case[k],
+            contact=None if contact is None or not hit[k] else contact[k],
+            fcl=None if fcl_hit[k] < 0 else bool(fcl_hit[k]),
+            length=length[k] if fcl_hit[k] >= 0 else None,
+            lp=lp[k],
+            lp_fin=lp_fin[k],
+            at_fault=verdicts.fault.get(k),
+        )
+        for k in sorted(verdicts.kinds)
+    ]

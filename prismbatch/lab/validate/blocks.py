@@ -12,17 +12,22 @@ import numpy as np
 
 from ...collide import Collider, pair_scale_tolerance
 from ...shapes import Prism
+from ..exact import lp_trust_band
 from .arbitrate import Verdicts, arbitrate, check_standins, make_records
-from .config import DISTRIBUTION_NAMES, LP_REL, n_blocks
+from .config import DISTRIBUTION_NAMES, n_blocks
 from .generate import generate_block
 from .merge import empty_counts, empty_times
 
 
 def pair_scale_tol(cfg, sa, sb, pos_a, rot_a, pos_b, rot_b):
-    """Per pair: scene scale S, prismbatch's tolerance and the touching band ``max(tol, LP_REL S)``."""
-    S, tol = pair_scale_tolerance(sa, sb, pos_a, rot_a, pos_b, rot_b, rtol=cfg["rtol"], atol=cfg["atol"],
-                                  dtype=cfg["dtype"])
-    return S, tol, np.maximum(tol, LP_REL * S)
+    """Per pair: scene scale S, prismbatch's tolerance and the touching band.
+
+    The band is :func:`~prismbatch.lab.exact.lp_trust_band`.
+    """
+    S, tol = pair_scale_tolerance(
+        sa, sb, pos_a, rot_a, pos_b, rot_b, rtol=cfg["rtol"], atol=cfg["atol"], dtype=cfg["dtype"]
+    )
+    return S, tol, lp_trust_band(tol, S)
 
 
 def residuals(shape, pos, rot, x):
@@ -49,8 +54,8 @@ def residuals(shape, pos, rot, x):
     out = -local[:, 2]
     step = max(1, 2_000_000 // len(h))
     for s in range(0, len(x), step):
-        side = local[s:s + step, :2] @ n2.T - h
-        out[s:s + step] = np.maximum(out[s:s + step], side.max(axis=1))
+        side = local[s : s + step, :2] @ n2.T - h
+        out[s : s + step] = np.maximum(out[s : s + step], side.max(axis=1))
     return out
 
 
@@ -68,8 +73,10 @@ def _check_contacts(cfg, blk, hit, contact, tol, c, verdicts):
     ok = hi[finite]
     if ok.size:
         x = contact[ok]
-        res = np.maximum(residuals(blk.shape_a, blk.pos_a[ok], blk.rot_a[ok], x),
-                         residuals(blk.shape_b, blk.pos_b[ok], blk.rot_b[ok], x))
+        res = np.maximum(
+            residuals(blk.shape_a, blk.pos_a[ok], blk.rot_a[ok], x),
+            residuals(blk.shape_b, blk.pos_b[ok], blk.rot_b[ok], x),
+        )
         eps = float(np.finfo(np.dtype(cfg["dtype"])).eps)
         bound = 2 * tol[ok] + 4 * eps * np.linalg.norm(x, axis=1)
         bad = res > bound
@@ -161,8 +168,16 @@ def _run_lp(cfg, blk, length, band, hit, fidx, fcl_hit, c, times):
             lp[k] = margin_lp(xa, blk.pos_a[k], blk.rot_a[k], xb, blk.pos_b[k], blk.rot_b[k])
             if cfg["fcl_fraction"] > 0.0 and lp[k] > -band[k]:
                 # stand-in check; below -band the stand-ins (subsets) are separated too
-                lp_fin[k] = margin_lp(xa, blk.pos_a[k], blk.rot_a[k], xb, blk.pos_b[k], blk.rot_b[k],
-                                      length_a=length[k], length_b=length[k])
+                lp_fin[k] = margin_lp(
+                    xa,
+                    blk.pos_a[k],
+                    blk.rot_a[k],
+                    xb,
+                    blk.pos_b[k],
+                    blk.rot_b[k],
+                    length_a=length[k],
+                    length_b=length[k],
+                )
                 times["lp_calls"] += 1
         except RuntimeError:
             c["lp_failed"] += 1
@@ -194,8 +209,21 @@ def process_block(cfg, distribution, block, threads=None):
     lp_idx, dis, lp, lp_fin = _run_lp(cfg, blk, length, band, hit, fidx, fcl_hit, c, times)
     short = check_standins(lp, lp_fin, band, S, c)
     arbitrate(blk, tol, band, hit, case, lp_idx, dis, lp, short, c, verdicts)
-    records = make_records(cfg, blk, verdicts, S=S, tol=tol, band=band, hit=hit, case=case, contact=contact,
-                           fcl_hit=fcl_hit, length=length, lp=lp, lp_fin=lp_fin)
+    records = make_records(
+        cfg,
+        blk,
+        verdicts,
+        S=S,
+        tol=tol,
+        band=band,
+        hit=hit,
+        case=case,
+        contact=contact,
+        fcl_hit=fcl_hit,
+        length=length,
+        lp=lp,
+        lp_fin=lp_fin,
+    )
     return (DISTRIBUTION_NAMES.index(distribution), block), c, times, records
 
 
@@ -270,8 +298,12 @@ def warm(dtype):
     """
     t = time.perf_counter()
     a, b = Prism.regular(5, 2.0), Prism.regular(6, 2.5)
-    P = (np.zeros((2, 3)), np.broadcast_to(np.diag([1.0, -1.0, -1.0]), (2, 3, 3)).copy(),
-         np.array([[0.0, 0.0, 1.0], [0.0, 0.0, 0.0]]), np.broadcast_to(np.eye(3), (2, 3, 3)).copy())
+    P = (
+        np.zeros((2, 3)),
+        np.broadcast_to(np.diag([1.0, -1.0, -1.0]), (2, 3, 3)).copy(),
+        np.array([[0.0, 0.0, 1.0], [0.0, 0.0, 0.0]]),
+        np.broadcast_to(np.eye(3), (2, 3, 3)).copy(),
+    )
     for dt in {np.dtype(dtype), np.dtype(np.float64)}:  # generation uses float64
         col = Collider(a, b, dtype=dt)
         for contact in (False, True):

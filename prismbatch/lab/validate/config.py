@@ -10,6 +10,7 @@ import math
 import numpy as np
 
 from ...collide import DEFAULT_RTOL
+from ...config import LP_TRUST_RTOL
 from ..checks import is_int
 
 #: Pairs per block: the unit of generation and seeding (not the chunk size).
@@ -27,17 +28,45 @@ DEGENERATE_CASES = (2, 3, 4, 7, 8)
 #: Record kinds, most severe first (a pair with several gets the first as "kind").
 RECORD_KINDS = ("outside band", "non-finite", "invalid contact", "stand-in too short", "inside band")
 
-#: Accuracy floor of the LP reference, relative to the scene scale S.
-LP_REL = 1e-7
+#: Accuracy floor of the LP reference, relative to the scene scale S (the one value: config.LP_TRUST_RTOL).
+LP_REL = LP_TRUST_RTOL
 
 # Counter names, internal to the package (see ValidationResult.counts).
 NC = 12  # case index 0..11 (0 unused)
-CASE_COUNTERS = ("pairs_case", "hits_case", "fcl_in_band", "fcl_out_pb", "fcl_out_fcl", "fcl_standin_short",
-                 "fcl_unarbitrated", "lp_band", "lp_in_band", "lp_out")
-INT_COUNTERS = ("pairs", "hits", "fcl_pairs", "lp_pairs", "lp_arbitration", "lp_failed", "standin_checked",
-                "standin_short", "standin_unsound", "contact_checked", "contact_invalid", "nonfinite",
-                "bad_case", "status_mismatch", "degenerate_substituted", "near_contact_unseparated",
-                "exact_pairs", "exact_wrong", "exact_band", "exact_unknown")
+CASE_COUNTERS = (
+    "pairs_case",
+    "hits_case",
+    "fcl_in_band",
+    "fcl_out_pb",
+    "fcl_out_fcl",
+    "fcl_standin_short",
+    "fcl_unarbitrated",
+    "lp_band",
+    "lp_in_band",
+    "lp_out",
+)
+INT_COUNTERS = (
+    "pairs",
+    "hits",
+    "fcl_pairs",
+    "lp_pairs",
+    "lp_arbitration",
+    "lp_failed",
+    "standin_checked",
+    "standin_short",
+    "standin_unsound",
+    "contact_checked",
+    "contact_invalid",
+    "nonfinite",
+    "bad_case",
+    "status_mismatch",
+    "degenerate_substituted",
+    "near_contact_unseparated",
+    "exact_pairs",
+    "exact_wrong",
+    "exact_band",
+    "exact_unknown",
+)
 MAX_COUNTERS = ("contact_max_ratio", "standin_max_dev")
 TIMES = ("gen", "pb", "pb_contact", "fcl", "fcl_setup", "lp", "check")
 
@@ -60,23 +89,39 @@ def _check_sampling(distributions, shapes, vertices):
         raise ValueError("distributions must name at least one of " + ", ".join(DISTRIBUTION_NAMES))
     for d in distributions:
         if d not in DISTRIBUTION_NAMES:
-            raise ValueError(f"distributions: unknown distribution {d!r}; choose from "
-                             + ", ".join(DISTRIBUTION_NAMES) + " ('stiff' is the stiff=True option)")
+            raise ValueError(
+                f"distributions: unknown distribution {d!r}; choose from "
+                + ", ".join(DISTRIBUTION_NAMES)
+                + " ('stiff' is the stiff=True option)"
+            )
     if len(set(distributions)) != len(distributions):
         raise ValueError(f"distributions: repeated names in {distributions}")
     shapes = (shapes,) if isinstance(shapes, str) else tuple(shapes)
     if not shapes or any(s not in SHAPE_KINDS for s in shapes):
-        raise ValueError(f"shapes must be one of {SHAPE_KINDS} or a sequence of them (cycled per block), "
-                         f"got {shapes!r}")
+        raise ValueError(
+            f"shapes must be one of {SHAPE_KINDS} or a sequence of them (cycled per block), got {shapes!r}"
+        )
     vertices = (vertices,) if isinstance(vertices, (int, np.integer)) else tuple(vertices)
     if not vertices or any(not is_int(v) or v < 3 for v in vertices):
         raise ValueError(f"vertices must be an integer >= 3 or a sequence of them, got {vertices!r}")
     return distributions, shapes, vertices
 
 
-def make_config(n_pairs=100_000, *, distributions=("facing", "free", "near-contact", "degenerate"),
-                shapes="regular", vertices=(36, 360), seed=0, dtype="float64", rtol=None, atol=0.0,
-                fcl=True, lp_samples=2000, contact_check=True, max_band_records=1000):
+def make_config(
+    n_pairs=100_000,
+    *,
+    distributions=("facing", "free", "near-contact", "degenerate"),
+    shapes="regular",
+    vertices=(36, 360),
+    seed=0,
+    dtype="float64",
+    rtol=None,
+    atol=0.0,
+    fcl=True,
+    lp_samples=2000,
+    contact_check=True,
+    max_band_records=1000,
+):
     """Check the validation settings and return them as a plain, JSON-able dict.
 
     See :func:`prismbatch.lab.validate.validate` for the parameters. The dict
@@ -113,11 +158,22 @@ def make_config(n_pairs=100_000, *, distributions=("facing", "free", "near-conta
         raise TypeError(f"contact_check must be True or False, got {contact_check!r}")
     if not is_int(max_band_records) or max_band_records < 0:
         raise ValueError(f"max_band_records must be an integer >= 0, got {max_band_records!r}")
-    return {"n_pairs": int(n_pairs), "distributions": list(distributions), "shapes": list(shapes),
-            "vertices": [int(v) for v in vertices], "seed": int(seed), "dtype": dt.name, "rtol": rtol,
-            "atol": atol, "fcl_fraction": fcl_frac, "lp_samples": int(lp_samples),
-            "contact_check": bool(contact_check), "max_band_records": int(max_band_records),
-            "block_size": BLOCK_SIZE, "lp_rel": LP_REL}
+    return {
+        "n_pairs": int(n_pairs),
+        "distributions": list(distributions),
+        "shapes": list(shapes),
+        "vertices": [int(v) for v in vertices],
+        "seed": int(seed),
+        "dtype": dt.name,
+        "rtol": rtol,
+        "atol": atol,
+        "fcl_fraction": fcl_frac,
+        "lp_samples": int(lp_samples),
+        "contact_check": bool(contact_check),
+        "max_band_records": int(max_band_records),
+        "block_size": BLOCK_SIZE,
+        "lp_rel": LP_REL,
+    }
 
 
 def n_blocks(cfg):

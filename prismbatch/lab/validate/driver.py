@@ -40,9 +40,11 @@ def _require_extras(cfg):
     """Fail early on missing extras, not after an hour of work."""
     if cfg["lp_samples"] > 0 or cfg["fcl_fraction"] > 0:  # the LP also arbitrates FCL disagreements
         from ..exact import import_linprog
+
         import_linprog()
     if cfg["fcl_fraction"] > 0:
         from ..peers import import_fcl
+
         import_fcl()
 
 
@@ -69,10 +71,26 @@ def _run_chunks(cfg, specs, merger, scheduler, workers, progress):
     return execution
 
 
-def validate(n_pairs=100_000, *, distributions=("facing", "free", "near-contact", "degenerate"),
-             shapes="regular", vertices=(36, 360), seed=0, chunk_size=50_000, dtype="float64", rtol=None,
-             atol=0.0, fcl=True, lp_samples=2000, contact_check=True, max_band_records=1000, stiff=False,
-             scheduler=None, workers=None, progress=True):
+def validate(
+    n_pairs=100_000,
+    *,
+    distributions=("facing", "free", "near-contact", "degenerate"),
+    shapes="regular",
+    vertices=(36, 360),
+    seed=0,
+    chunk_size=50_000,
+    dtype="float64",
+    rtol=None,
+    atol=0.0,
+    fcl=True,
+    lp_samples=2000,
+    contact_check=True,
+    max_band_records=1000,
+    stiff=False,
+    scheduler=None,
+    workers=None,
+    progress=True,
+):
     """Monte Carlo validation of prismbatch against python-fcl and the exact LP.
 
     Parameters
@@ -137,9 +155,20 @@ def validate(n_pairs=100_000, *, distributions=("facing", "free", "near-contact"
         A needed optional dependency is missing (scipy for the LP,
         python-fcl, dask); the message names the extra to install.
     """
-    cfg = make_config(n_pairs, distributions=distributions, shapes=shapes, vertices=vertices, seed=seed,
-                      dtype=dtype, rtol=rtol, atol=atol, fcl=fcl, lp_samples=lp_samples,
-                      contact_check=contact_check, max_band_records=max_band_records)
+    cfg = make_config(
+        n_pairs,
+        distributions=distributions,
+        shapes=shapes,
+        vertices=vertices,
+        seed=seed,
+        dtype=dtype,
+        rtol=rtol,
+        atol=atol,
+        fcl=fcl,
+        lp_samples=lp_samples,
+        contact_check=contact_check,
+        max_band_records=max_band_records,
+    )
     _check_run_options(chunk_size, stiff, workers, scheduler)
     _require_extras(cfg)
     t_start = time.perf_counter()
@@ -153,5 +182,6 @@ def validate(n_pairs=100_000, *, distributions=("facing", "free", "near-contact"
         from ..stiff import run_stiff_suite
 
         rep = run_stiff_suite(quick=stiff == "quick", seed=cfg["seed"], progress=progress)
-    return ValidationResult(cfg, merger.counts, merger.times, merger.records, merger.total, compile_time,
-                            wall, execution, rep)
+    return ValidationResult(
+        cfg, merger.counts, merger.times, merger.records, merger.total, compile_time, wall, execution, rep
+    )

@@ -35,8 +35,9 @@ def make_shape(kind, n, rng):
     if kind == "cylinder":
         r = rng.uniform(0.5, 1.5)
         # Fitted n-gon: circumscribed about the circle (contains it, like the paper's 3600-gon).
-        return Prism.regular(n, r / math.cos(math.pi / n), phase=rng.uniform(0, 2 * np.pi),
-                             centre=rng.uniform(-0.3, 0.3, 2) * r)
+        return Prism.regular(
+            n, r / math.cos(math.pi / n), phase=rng.uniform(0, 2 * np.pi), centre=rng.uniform(-0.3, 0.3, 2) * r
+        )
     radius = rng.uniform(1.0, 3.0)
     centre = rng.uniform(-0.3, 0.3, 2) * radius
     if kind == "regular":
@@ -124,14 +125,14 @@ def _degenerate(sa, sb, m, rng, block):
         for t in range(k):  # a case the shapes cannot produce (e.g. no clear vertex): the next one
             case = DEGENERATE_CASES[(j + t) % k]
             try:
-                parts.append(case_poses(case, size, sa, sb, rng, hit_fraction=0.5,
-                                        world_transform=bool(block % 2)))
+                parts.append(case_poses(case, size, sa, sb, rng, hit_fraction=0.5, world_transform=bool(block % 2)))
                 break
             except RuntimeError:
                 substituted += size
         else:
-            raise RuntimeError(f"degenerate: no case of {DEGENERATE_CASES} can be built for these shapes "
-                               f"({sa!r}, {sb!r})")
+            raise RuntimeError(
+                f"degenerate: no case of {DEGENERATE_CASES} can be built for these shapes ({sa!r}, {sb!r})"
+            )
     return tuple(np.concatenate([p[i] for p in parts]) for i in range(4)) + (substituted,)
 
 
@@ -181,9 +182,11 @@ def generate_block(config, distribution, block):
     notes = {}
     if distribution == "facing":
         from ...sampling import facing_poses
+
         P = facing_poses(m, rng_pose, radius=max(sa.radius, sb.radius))
     elif distribution == "free":
         from ...sampling import free_poses
+
         P = free_poses(m, rng_pose, radius=max(sa.radius, sb.radius))
     elif distribution == "near-contact":
         *P, notes["near_contact_unseparated"] = _near_contact(sa, sb, m, rng_pose, config["rtol"])
@@ -192,5 +195,13 @@ def generate_block(config, distribution, block):
     dt = np.dtype(config["dtype"])
     # Every method sees the poses prismbatch sees (rounded to the run's dtype).
     P = [np.ascontiguousarray(np.asarray(x, dtype=dt), dtype=np.float64) for x in P]
-    return Block(distribution, block, (DISTRIBUTION_NAMES.index(distribution), block), sa, sb, *P,
-                 rngs=[rng_fcl, rng_lp], notes=notes)
+    return Block(
+        distribution,
+        block,
+        (DISTRIBUTION_NAMES.index(distribution), block),
+        sa,
+        sb,
+        *P,
+        rngs=[rng_fcl, rng_lp],
+        notes=notes,
+    )

@@ -103,15 +103,28 @@ class ValidationResult:
         """True when prismbatch has no disagreement outside the band (nor an unarbitrated one), no
         invalid contact and no non-finite or invalid output (the stiff suite reports its own)."""
         t = self.totals()
-        return (int(t["fcl_out_pb"].sum()) == 0 and int(t["lp_out"].sum()) == 0 and t["exact_wrong"] == 0
-                and int(t["fcl_unarbitrated"].sum()) == 0 and t["contact_invalid"] == 0
-                and t["nonfinite"] == 0 and t["bad_case"] == 0 and t["status_mismatch"] == 0)
+        return (
+            int(t["fcl_out_pb"].sum()) == 0
+            and int(t["lp_out"].sum()) == 0
+            and t["exact_wrong"] == 0
+            and int(t["fcl_unarbitrated"].sum()) == 0
+            and t["contact_invalid"] == 0
+            and t["nonfinite"] == 0
+            and t["bad_case"] == 0
+            and t["status_mismatch"] == 0
+        )
 
     def outcome(self):
         """Everything that must not depend on chunking or workers (no timings)."""
-        return {"config": self.config, "records_total": self.records_total, "records": self.records,
-                "counts": {d: {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in c.items()}
-                           for d, c in self.counts.items()}}
+        return {
+            "config": self.config,
+            "records_total": self.records_total,
+            "records": self.records,
+            "counts": {
+                d: {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in c.items()}
+                for d, c in self.counts.items()
+            },
+        }
 
 
 class Merger:

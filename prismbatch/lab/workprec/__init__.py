@@ -31,7 +31,20 @@ from .scene import TILT_RANGE_DEG as TILT_RANGE_DEG
 from .scene import NearContactPoses, geometric_error, near_contact_poses, vertices_needed
 from .stats import fit_order, noise_floor, wilson_interval
 
-__all__ = ["run_work_precision", "write_work_precision", "format_work_precision", "plot_work_precision",
-           "WorkPrecisionResult", "NearContactPoses", "near_contact_poses", "wilson_interval",
-           "noise_floor", "geometric_error", "fit_order", "vertices_needed", "METHODS",
-           "DEFAULT_VERTICES", "QUICK_VERTICES"]
+__all__ = [
+    "run_work_precision",
+    "write_work_precision",
+    "format_work_precision",
+    "plot_work_precision",
+    "WorkPrecisionResult",
+    "NearContactPoses",
+    "near_contact_poses",
+    "wilson_interval",
+    "noise_floor",
+    "geometric_error",
+    "fit_order",
+    "vertices_needed",
+    "METHODS",
+    "DEFAULT_VERTICES",
+    "QUICK_VERTICES",
+]

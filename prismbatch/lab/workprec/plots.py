@@ -42,9 +42,10 @@ def _series(result, method):
 def _same_labels(result, m1, m2):
     """True when two methods reported identical hits at every n (then one curve is drawn)."""
     keys = [k for k in result.predictions if k[0] == m1]
-    return bool(keys) and all((m2, k[1]) in result.predictions
-                              and np.array_equal(result.predictions[k], result.predictions[(m2, k[1])])
-                              for k in keys)
+    return bool(keys) and all(
+        (m2, k[1]) in result.predictions and np.array_equal(result.predictions[k], result.predictions[(m2, k[1])])
+        for k in keys
+    )
 
 
 def _draw_rates(ax, xs, rows, method, label, y_min):
@@ -59,12 +60,28 @@ def _draw_rates(ax, xs, rows, method, label, y_min):
         ax.plot(xs, np.where(pos, rate, hi), color=col, linestyle=ls, linewidth=1.2, alpha=0.8)
     handle = None
     if pos.any():
-        handle = ax.errorbar(xs[pos], rate[pos], yerr=[rate[pos] - np.maximum(lo[pos], y_min), hi[pos] - rate[pos]],
-                             fmt=mk, color=col, markersize=9 if mk == "*" else 5, capsize=2, linestyle="none",
-                             label=label)
+        handle = ax.errorbar(
+            xs[pos],
+            rate[pos],
+            yerr=[rate[pos] - np.maximum(lo[pos], y_min), hi[pos] - rate[pos]],
+            fmt=mk,
+            color=col,
+            markersize=9 if mk == "*" else 5,
+            capsize=2,
+            linestyle="none",
+            label=label,
+        )
     if (~pos).any():
-        h = ax.plot(xs[~pos], hi[~pos], marker="v", markerfacecolor="none", color=col, linestyle="none",
-                    markersize=6, label=None if pos.any() else label)[0]
+        h = ax.plot(
+            xs[~pos],
+            hi[~pos],
+            marker="v",
+            markerfacecolor="none",
+            color=col,
+            linestyle="none",
+            markersize=6,
+            label=None if pos.any() else label,
+        )[0]
         handle = handle or h
     return handle
 
@@ -122,8 +139,16 @@ def _annotate_n(ax, key, ctx):
     for m, off, ha, va in (("fcl_ngon", (3, 6), "left", "bottom"), ("pb64_batch", (-7, 0), "right", "center")):
         pts = [(r["t_median_us"], r[key] if r[key] > 0 else r["ci_high"], r["n"]) for r in _series(ctx.result, m)]
         for x, y, text in _sparse_labels(pts, column=m == "pb64_batch"):
-            ax.annotate(text, (pb_left if m == "pb64_batch" else x, y), textcoords="offset points", xytext=off,
-                        ha=ha, va=va, fontsize=7, color=_STYLE[m][0])
+            ax.annotate(
+                text,
+                (pb_left if m == "pb64_batch" else x, y),
+                textcoords="offset points",
+                xytext=off,
+                ha=ha,
+                va=va,
+                fontsize=7,
+                color=_STYLE[m][0],
+            )
 
 
 def _figure_error_vs_time(ctx, out_dir, stem):
@@ -138,15 +163,27 @@ def _figure_error_vs_time(ctx, out_dir, stem):
         _draw_rates(ax1, [r["t_median_us"] for r in rows], rows, m, labels[m], ctx.y_min)
         if m != "fcl_cylinder":
             c, mk, ls = _STYLE[m]
-            ax2.plot([r["t_median_us"] for r in rows], [r["geom_rel_error"] for r in rows], color=c, marker=mk,
-                     linestyle=ls, label=labels[m], markersize=5)
+            ax2.plot(
+                [r["t_median_us"] for r in rows],
+                [r["geom_rel_error"] for r in rows],
+                color=c,
+                marker=mk,
+                linestyle=ls,
+                label=labels[m],
+                markersize=5,
+            )
     ax1.axhline(ctx.floor, color="0.4", linestyle=":", linewidth=1.2, label=ctx.floor_label)
     ax1.plot([], [], marker="v", markerfacecolor="none", color="0.3", linestyle="none", label=ctx.zero_label)
     for ax, key in ((ax1, "rate"), (ax2, "geom_rel_error")):
         _annotate_n(ax, key, ctx)
     if ctx.cyl:
-        ax2.axvline(ctx.cyl[0]["t_median_us"], color="black", linestyle="-.", linewidth=1,
-                    label=labels["fcl_cylinder"] + ": its time (no geometric error)")
+        ax2.axvline(
+            ctx.cyl[0]["t_median_us"],
+            color="black",
+            linestyle="-.",
+            linewidth=1,
+            label=labels["fcl_cylinder"] + ": its time (no geometric error)",
+        )
     _log_axes((ax1, ax2), "time per query (µs; median of passes, one thread; log scale)")
     for ax in (ax1, ax2):
         lo, hi = ax.get_xlim()
@@ -157,9 +194,11 @@ def _figure_error_vs_time(ctx, out_dir, stem):
     ax2.set_ylabel("geometric error 1 - cos(π/n) = radial deficit / r (log scale)")
     ax2.set_title("(b) geometric error of the inscribed n-gon (numbers: n)", fontsize=10)
     _legend_below(fig, (ax1, ax2))
-    fig.suptitle(f"Work-precision: semi-infinite cylinder (r = {s['radius']:g}) as an n-gon prism against a "
-                 f"hexagonal prism; {s['n_poses']:,} near-contact poses; {cpu_name()} (shared, timings noisy)",
-                 fontsize=11)
+    fig.suptitle(
+        f"Work-precision: semi-infinite cylinder (r = {s['radius']:g}) as an n-gon prism against a "
+        f"hexagonal prism; {s['n_poses']:,} near-contact poses; {cpu_name()} (shared, timings noisy)",
+        fontsize=11,
+    )
     return save_figure(fig, out_dir, f"{stem}_error_vs_time")
 
 
@@ -175,20 +214,41 @@ def _panel_geometry(ax1, ctx):
     nn = np.asarray(g["n"], dtype=float)
     ax1.plot(nn, g["rel_error"], "ko", label="geometric error 1 - cos(π/n) of the inscribed n-gon")
     nf = np.geomspace(nn.min(), nn.max(), 100)
-    ax1.plot(nf, g["constant"] * nf ** -g["order"], "k--", linewidth=1,
-             label=f"least-squares fit {g['constant']:.3f} n^-{g['order']:.3f} (fitted order {g['order']:.3f})")
+    ax1.plot(
+        nf,
+        g["constant"] * nf ** -g["order"],
+        "k--",
+        linewidth=1,
+        label=f"least-squares fit {g['constant']:.3f} n^-{g['order']:.3f} (fitted order {g['order']:.3f})",
+    )
     for m in ("pb64_batch", "fcl_ngon"):
         rows = [r for r in _series(result, m) if r["fn"] > 0]
         if rows:
             c, mk, _ = _STYLE[m]
-            ax1.plot([r["n"] for r in rows], [r["max_fn_depth"] for r in rows], color=c, marker=mk,
-                     linestyle="none", markerfacecolor="none", markersize=8 if m == "pb64_batch" else 6,
-                     label=f"deepest missed hit, |gap| / r: {labels[m]}")
+            ax1.plot(
+                [r["n"] for r in rows],
+                [r["max_fn_depth"] for r in rows],
+                color=c,
+                marker=mk,
+                linestyle="none",
+                markerfacecolor="none",
+                markersize=8 if m == "pb64_batch" else 6,
+                label=f"deepest missed hit, |gap| / r: {labels[m]}",
+            )
     if cyl and cyl[0]["fn"] > 0:
-        ax1.axhline(cyl[0]["max_fn_depth"], color="black", linestyle="-.", linewidth=1,
-                    label=f"deepest missed hit, |gap| / r: {labels['fcl_cylinder']}")
-    ax1.axhline(s["gap_range_rel"][0], color="0.4", linestyle=":",
-                label=f"smallest |gap| / r sampled ({s['gap_range_rel'][0]:g})")
+        ax1.axhline(
+            cyl[0]["max_fn_depth"],
+            color="black",
+            linestyle="-.",
+            linewidth=1,
+            label=f"deepest missed hit, |gap| / r: {labels['fcl_cylinder']}",
+        )
+    ax1.axhline(
+        s["gap_range_rel"][0],
+        color="0.4",
+        linestyle=":",
+        label=f"smallest |gap| / r sampled ({s['gap_range_rel'][0]:g})",
+    )
     ax1.set_ylabel("length / r (log scale)")
     ax1.set_title("(a) geometric error and the deepest overlap each method missed", fontsize=10)
 
@@ -209,8 +269,13 @@ def _panel_rates_vs_n(ax2, ctx):
     if cyl:
         r = cyl[0]
         ax2.axhspan(max(r["ci_low"], ctx.y_min), r["ci_high"], color="0.8", alpha=0.6)
-        ax2.axhline(r["rate"] if r["rate"] > 0 else r["ci_high"], color="black", linestyle="-.", linewidth=1,
-                    label=labels["fcl_cylinder"] + " (no n; grey band: 95 % CI)")
+        ax2.axhline(
+            r["rate"] if r["rate"] > 0 else r["ci_high"],
+            color="black",
+            linestyle="-.",
+            linewidth=1,
+            label=labels["fcl_cylinder"] + " (no n; grey band: 95 % CI)",
+        )
     ax2.axhline(ctx.floor, color="0.4", linestyle=":", label=ctx.floor_label)
     ax2.plot([], [], marker="v", markerfacecolor="none", color="0.3", linestyle="none", label=ctx.zero_label)
     ax2.set_ylim(bottom=ctx.y_min, top=1.0)
@@ -227,9 +292,12 @@ def _figure_error_vs_n(ctx, out_dir, stem):
     _panel_rates_vs_n(ax2, ctx)
     _log_axes((ax1, ax2), "vertices n of the cylinder's inscribed n-gon (log scale)")
     _legend_below(fig, (ax1, ax2))
-    fig.suptitle(f"Error against n: semi-infinite cylinder (r = {s['radius']:g}) as an inscribed n-gon prism, "
-                 f"{s['n_poses']:,} near-contact poses (|gap| / r log-uniform in [{s['gap_range_rel'][0]:g}, "
-                 f"{s['gap_range_rel'][1]:g}])", fontsize=11)
+    fig.suptitle(
+        f"Error against n: semi-infinite cylinder (r = {s['radius']:g}) as an inscribed n-gon prism, "
+        f"{s['n_poses']:,} near-contact poses (|gap| / r log-uniform in [{s['gap_range_rel'][0]:g}, "
+        f"{s['gap_range_rel'][1]:g}])",
+        fontsize=11,
+    )
     return save_figure(fig, out_dir, f"{stem}_error_vs_n")
 
 
@@ -252,9 +320,13 @@ def plot_work_precision(result, out_dir, *, stem="workprec"):
     floor = s["noise_floor"]
     rate_rows = [r for r in result.rows if math.isfinite(r["rate"])]
     ctx = _Context(
-        result=result, labels=method_labels(result.versions), floor=floor,
-        y_min=min([floor] + [r["ci_low"] for r in rate_rows if r["rate"] > 0]) / 3.0, rate_rows=rate_rows,
+        result=result,
+        labels=method_labels(result.versions),
+        floor=floor,
+        y_min=min([floor] + [r["ci_low"] for r in rate_rows if r["rate"] > 0]) / 3.0,
+        rate_rows=rate_rows,
         cyl=_series(result, "fcl_cylinder"),
         floor_label=f"Monte Carlo noise floor: 95 % upper bound at 0 errors, N = {s['n_poses']:,}",
-        zero_label="open down-triangle: no error seen (drawn at its 95 % upper bound)")
+        zero_label="open down-triangle: no error seen (drawn at its 95 % upper bound)",
+    )
     return _figure_error_vs_time(ctx, out_dir, stem) + _figure_error_vs_n(ctx, out_dir, stem)

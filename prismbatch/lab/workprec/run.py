@@ -42,13 +42,33 @@ DEFAULT_REPEATS, QUICK_REPEATS = 3, 2
 PASS_BUDGET_S = 30.0
 
 # raised from run_work_precision, which both Python callers and `prismbatch workprec` reach: name both ways out
-FCL_MISSING = ("python-fcl is not installed: pip install 'prismbatch[fcl]' (or skip its rows: fcl=False in "
-               "Python, --no-fcl on the command line)")
+FCL_MISSING = (
+    "python-fcl is not installed: pip install 'prismbatch[fcl]' (or skip its rows: fcl=False in "
+    "Python, --no-fcl on the command line)"
+)
 
 #: The columns of a row taken from :func:`.stats.error_stats` (NaN when the method did not run).
-STAT_KEYS = ("n_queries", "exact_hits", "exact_misses", "wrong", "rate", "ci_low", "ci_high", "fn", "fn_rate",
-             "fn_ci_low", "fn_ci_high", "fp", "fp_rate", "fp_ci_low", "fp_ci_high", "max_fn_depth",
-             "max_fp_gap", "fn_beyond_tol", "fp_beyond_tol")
+STAT_KEYS = (
+    "n_queries",
+    "exact_hits",
+    "exact_misses",
+    "wrong",
+    "rate",
+    "ci_low",
+    "ci_high",
+    "fn",
+    "fn_rate",
+    "fn_ci_low",
+    "fn_ci_high",
+    "fp",
+    "fp_rate",
+    "fp_ci_low",
+    "fp_ci_high",
+    "max_fn_depth",
+    "max_fp_gap",
+    "fn_beyond_tol",
+    "fp_beyond_tol",
+)
 
 
 # ---------------------------------------------------------------------------
@@ -108,14 +128,19 @@ class RowTable:
         """One row; ``times`` and ``hits`` None for a method that did not run (its columns NaN)."""
         stats = error_stats(hits, self.P, depth, tol_m) if hits is not None else {}
         t_us = 1e6 * times / len(self.P) if times is not None else None
-        row = dict(method=method, label=self.labels[method], shape="cylinder" if n is None else "n-gon", n=n,
-                   geom_rel_error=geom_rel,
-                   t_median_us=float(np.median(t_us)) if t_us is not None else math.nan,
-                   t_min_us=float(np.min(t_us)) if t_us is not None else math.nan,
-                   t_max_us=float(np.max(t_us)) if t_us is not None else math.nan,
-                   passes=0 if times is None else len(times),
-                   setup_ms=1e3 * setup_s if setup_s is not None else math.nan,
-                   passes_agree=same)
+        row = dict(
+            method=method,
+            label=self.labels[method],
+            shape="cylinder" if n is None else "n-gon",
+            n=n,
+            geom_rel_error=geom_rel,
+            t_median_us=float(np.median(t_us)) if t_us is not None else math.nan,
+            t_min_us=float(np.min(t_us)) if t_us is not None else math.nan,
+            t_max_us=float(np.max(t_us)) if t_us is not None else math.nan,
+            passes=0 if times is None else len(times),
+            setup_ms=1e3 * setup_s if setup_s is not None else math.nan,
+            passes_agree=same,
+        )
         for k in STAT_KEYS:
             row[k] = stats.get(k, math.nan)
         radius = self.radius
@@ -145,10 +170,12 @@ def resolve_arguments(vertices, n_poses, repeats, seed, radius, quick):
         raise TypeError(f"vertices must be a sequence of integers >= 3: {exc}") from None
     if not verts:
         raise ValueError("vertices must not be empty")
-    n_poses = check_int(QUICK_POSES if quick and n_poses is None else DEFAULT_POSES if n_poses is None
-                        else n_poses, "n_poses", 2)
-    repeats = check_int(QUICK_REPEATS if quick and repeats is None else DEFAULT_REPEATS if repeats is None
-                        else repeats, "repeats", 1)
+    n_poses = check_int(
+        QUICK_POSES if quick and n_poses is None else DEFAULT_POSES if n_poses is None else n_poses, "n_poses", 2
+    )
+    repeats = check_int(
+        QUICK_REPEATS if quick and repeats is None else DEFAULT_REPEATS if repeats is None else repeats, "repeats", 1
+    )
     seed = check_int(seed, "seed", 0)
     radius = check_positive(radius, "radius")
     return verts, n_poses, repeats, seed, radius
@@ -208,8 +235,10 @@ def time_prismbatch(table, n, shape_b, arrays, items, tol, repeats, depth, geom_
     perf = time.perf_counter
     t0 = perf()
     shape_a = Prism.regular(n, radius)
-    cols = {np.float64: Collider(shape_a, shape_b, dtype=np.float64),
-            np.float32: Collider(shape_a, shape_b, dtype=np.float32)}
+    cols = {
+        np.float64: Collider(shape_a, shape_b, dtype=np.float64),
+        np.float32: Collider(shape_a, shape_b, dtype=np.float32),
+    }
     setup_pb = perf() - t0
     for dt, tag in ((np.float64, "pb64"), (np.float32, "pb32")):
         if tol[dt] is None:
@@ -263,23 +292,43 @@ def geometry_summary(verts, radius):
     """Geometric error of every n and its fitted order (theory: 2 and pi^2 / 2)."""
     g_abs = geometric_error(np.array(verts), radius)
     p_ord, const = fit_order(verts, g_abs / radius)
-    return dict(n=np.array(verts), abs_error=g_abs, rel_error=g_abs / radius, order=p_ord, constant=const,
-                constant_theory=math.pi ** 2 / 2)
+    return dict(
+        n=np.array(verts),
+        abs_error=g_abs,
+        rel_error=g_abs / radius,
+        order=p_ord,
+        constant=const,
+        constant_theory=math.pi**2 / 2,
+    )
 
 
 def run_settings(*, radius, verts, n_poses, repeats, seed, quick, P, L, fcl_on, tol):
     """The ``settings`` of a :class:`.result.WorkPrecisionResult`."""
     return dict(
-        radius=radius, shape_a=f"cylinder of radius {radius:g} as inscribed regular n-gon (vertex 0 on local +x)",
+        radius=radius,
+        shape_a=f"cylinder of radius {radius:g} as inscribed regular n-gon (vertex 0 on local +x)",
         shape_b=f"regular {B_VERTICES}-gon, circumradius {B_SCALE * radius:g} (the paper's hexagon scaled 2.5:2)",
-        rot_a="diag(1, -1, -1) (axis down)", vertices=verts, n_poses=n_poses, repeats=repeats, seed=seed,
-        quick=bool(quick), gap_range_rel=GAP_RANGE, beta_range_deg=BETA_RANGE_DEG, tilt_range_deg=TILT_RANGE_DEG,
-        hit_fraction=0.5, exact_hits=int(P.hit.sum()), exact_misses=int((~P.hit).sum()),
-        noise_floor=noise_floor(n_poses), fcl_standin_length=L, fcl=fcl_on,
+        rot_a="diag(1, -1, -1) (axis down)",
+        vertices=verts,
+        n_poses=n_poses,
+        repeats=repeats,
+        seed=seed,
+        quick=bool(quick),
+        gap_range_rel=GAP_RANGE,
+        beta_range_deg=BETA_RANGE_DEG,
+        tilt_range_deg=TILT_RANGE_DEG,
+        hit_fraction=0.5,
+        exact_hits=int(P.hit.sum()),
+        exact_misses=int((~P.hit).sum()),
+        noise_floor=noise_floor(n_poses),
+        fcl_standin_length=L,
+        fcl=fcl_on,
         fcl_solver="python-fcl default CollisionRequest (GST_LIBCCD)",
         rtol={"float64": DEFAULT_RTOL[np.dtype(np.float64)], "float32": DEFAULT_RTOL[np.dtype(np.float32)]},
-        median_tolerance_rel={"float64": float(np.median(tol[np.float64])) / radius,
-                              "float32": float(np.median(tol[np.float32])) / radius},
+        median_tolerance_rel={
+            "float64": float(np.median(tol[np.float64])) / radius,
+            "float32": float(np.median(tol[np.float32])) / radius,
+        },
         timing="median of repeats of a full pass over the N poses; compile time excluded",
     )
 
@@ -289,8 +338,9 @@ def run_settings(*, radius, verts, n_poses, repeats, seed, quick, P, L, fcl_on, 
 # ---------------------------------------------------------------------------
 
 
-def run_work_precision(*, vertices=None, n_poses=None, radius=1.0, repeats=None, seed=0, quick=False,
-                       progress=True, fcl=True):
+def run_work_precision(
+    *, vertices=None, n_poses=None, radius=1.0, repeats=None, seed=0, quick=False, progress=True, fcl=True
+):
     """Run the work-precision study (``docs/methods/work-precision.md``).
 
     Parameters
@@ -347,7 +397,18 @@ def run_work_precision(*, vertices=None, n_poses=None, radius=1.0, repeats=None,
         bar.update(1)
 
     table.sort()
-    settings = run_settings(radius=radius, verts=verts, n_poses=n_poses, repeats=repeats, seed=seed, quick=quick,
-                            P=P, L=L, fcl_on=fcl_on, tol=tol)
-    return WorkPrecisionResult(settings, table.rows, geometry_summary(verts, radius), compile_s, P, table.preds,
-                               versions)
+    settings = run_settings(
+        radius=radius,
+        verts=verts,
+        n_poses=n_poses,
+        repeats=repeats,
+        seed=seed,
+        quick=quick,
+        P=P,
+        L=L,
+        fcl_on=fcl_on,
+        tol=tol,
+    )
+    return WorkPrecisionResult(
+        settings, table.rows, geometry_summary(verts, radius), compile_s, P, table.preds, versions
+    )

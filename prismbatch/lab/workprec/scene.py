@@ -177,9 +177,17 @@ def _check_pose_arguments(n, rng, radius, shape_b, gap_range, beta_range, tilt_r
     return n, radius, shape_b, (lo, hi), (b0, b1), (t0, t1)
 
 
-def near_contact_poses(n, rng, *, radius=1.0, shape_b=None, gap_range=GAP_RANGE,
-                       beta_range=tuple(np.radians(BETA_RANGE_DEG)),
-                       tilt_range=tuple(np.radians(TILT_RANGE_DEG)), hit_fraction=0.5):
+def near_contact_poses(
+    n,
+    rng,
+    *,
+    radius=1.0,
+    shape_b=None,
+    gap_range=GAP_RANGE,
+    beta_range=tuple(np.radians(BETA_RANGE_DEG)),
+    tilt_range=tuple(np.radians(TILT_RANGE_DEG)),
+    hit_fraction=0.5,
+):
     """Near-contact poses of a semi-infinite cylinder (a) and a polygonal prism (b), exact labels.
 
     See ``docs/methods/work-precision.md`` for the construction and why its labels are exact.
@@ -209,7 +217,8 @@ def near_contact_poses(n, rng, *, radius=1.0, shape_b=None, gap_range=GAP_RANGE,
     NearContactPoses
     """
     n, radius, shape_b, (lo, hi), (b0, b1), (t0, t1) = _check_pose_arguments(
-        n, rng, radius, shape_b, gap_range, beta_range, tilt_range, hit_fraction)
+        n, rng, radius, shape_b, gap_range, beta_range, tilt_range, hit_fraction
+    )
 
     rot_a1 = AXIS_DOWN.astype(float)
     pos_a1 = np.zeros(3)
@@ -227,8 +236,9 @@ def near_contact_poses(n, rng, *, radius=1.0, shape_b=None, gap_range=GAP_RANGE,
     tilt = rng.uniform(t0, t1, n)
     psi = rng.uniform(0.0, 2.0 * np.pi, n)
     e1 = _frames_with_axis(u, np.zeros(n))
-    d_b = (np.cos(tilt)[:, None] * u + np.sin(tilt)[:, None] * (np.cos(psi)[:, None] * e1[:, :, 0]
-                                                                + np.sin(psi)[:, None] * e1[:, :, 1]))
+    d_b = np.cos(tilt)[:, None] * u + np.sin(tilt)[:, None] * (
+        np.cos(psi)[:, None] * e1[:, :, 0] + np.sin(psi)[:, None] * e1[:, :, 1]
+    )
     rot_b = _frames_with_axis(_unit_rows(d_b), rng.uniform(0.0, 2.0 * np.pi, n))
     xy_b = np.asarray(shape_b.xy)
     heights = np.einsum("nk,nkj->nj", u, rot_b[:, :, :2]) @ xy_b.T  # (N, n_b): u . (R_b [x, y, 0])

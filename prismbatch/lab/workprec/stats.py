@@ -95,8 +95,17 @@ def error_stats(pred, P, depth, tol):
     wrong = int(fn.sum() + fp.sum())
     nh, nm = int(hit.sum()), int((~hit).sum())
     lo, hi = wilson_interval(wrong, N)
-    out = dict(n_queries=N, exact_hits=nh, exact_misses=nm, wrong=wrong, rate=wrong / N, ci_low=lo, ci_high=hi,
-               fn=int(fn.sum()), fp=int(fp.sum()))
+    out = dict(
+        n_queries=N,
+        exact_hits=nh,
+        exact_misses=nm,
+        wrong=wrong,
+        rate=wrong / N,
+        ci_low=lo,
+        ci_high=hi,
+        fn=int(fn.sum()),
+        fp=int(fp.sum()),
+    )
     for k, cnt, tot in (("fn", int(fn.sum()), nh), ("fp", int(fp.sum()), nm)):
         out[f"{k}_rate"] = cnt / tot if tot else math.nan
         out[f"{k}_ci_low"], out[f"{k}_ci_high"] = wilson_interval(cnt, tot) if tot else (math.nan, math.nan)
