@@ -21,7 +21,9 @@ from prismbatch.lab.exact_gap import check_contact, exact_quat_matrix, gap_bound
 
 pytest.importorskip("highspy")
 
-DATA = Path(__file__).resolve().parent / "data"
+pytestmark = [pytest.mark.slow]
+
+DATA = Path(__file__).resolve().parents[1] / "data"
 SQ = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
 DOWN = np.diag([1.0, -1.0, -1.0])  # a's body below its end face
 I3 = np.eye(3)

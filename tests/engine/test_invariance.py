@@ -20,8 +20,10 @@ from scipy.spatial.transform import Rotation
 
 import prismbatch as pb
 
-from conftest import PairData, random_rotations, rot_z
+from helpers import PairData, random_rotations, rot_z
 from reference import point_in_prism_residual
+
+pytestmark = [pytest.mark.slow]
 
 CLEAR_REL = 1e-6
 

@@ -18,6 +18,8 @@ from prismbatch.lab.study import fit_growth, format_study, run_study, write_stud
 
 from reference import margin_lp
 
+pytestmark = [pytest.mark.slow, pytest.mark.needs_fcl, pytest.mark.needs_coal]
+
 VERTS = (8, 24, 60)
 POSES = 10
 

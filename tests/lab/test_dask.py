@@ -12,6 +12,8 @@ pytest.importorskip("fcl")
 
 from prismbatch.lab import validate as V  # noqa: E402
 
+pytestmark = [pytest.mark.slow, pytest.mark.needs_fcl]
+
 KW = dict(vertices=(5, 12), shapes=("regular", "random"), seed=21, lp_samples=20, progress=False)
 N = 4200  # per distribution: two blocks each (4096 + 104), 16,800 pairs
 

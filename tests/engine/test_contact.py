@@ -22,7 +22,7 @@ import pytest
 
 import prismbatch as pb
 
-from conftest import (
+from helpers import (
     PairData,
     bisect_to_contact,
     concat_pairs,
@@ -76,6 +76,7 @@ def random_pairs():
     return concat_pairs(make_pairs(rng, 1500, "facing", "mixed"), make_pairs(rng, 1500, "free", "mixed"))
 
 
+@pytest.mark.slow
 def test_random_pair_contacts_inside_both_prisms(random_pairs):
     d = random_pairs
     r = pb.collide(pb.PrismSet(d.polys_a), pb.PrismSet(d.polys_b), *d.args(), contact=True)
@@ -104,6 +105,7 @@ def test_contact_flag_serial_parallel_consistency(random_pairs):
     assert np.all((full.case >= 1) & (full.case <= 11))
 
 
+@pytest.mark.slow
 def test_near_touching_contacts():
     """Contacts of pairs moved to the edge of touching (last hit of a
     bisection on prismbatch's own decision): the gap there is at most
@@ -142,6 +144,7 @@ def test_parallel_contacts(relation, height):
     assert n_hits >= 40
 
 
+@pytest.mark.slow
 def test_float32_contacts(random_pairs):
     d = random_pairs
     r = pb.collide(pb.PrismSet(d.polys_a), pb.PrismSet(d.polys_b), *d.args(), contact=True, dtype=np.float32)
@@ -153,6 +156,7 @@ def test_float32_contacts(random_pairs):
     assert n_hits >= 800
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("rtol,atol", [(0.0, 0.02), (1e-2, 0.0)])
 def test_contacts_with_large_tolerance(random_pairs, rtol, atol):
     """With a large tolerance, hits include pairs up to sqrt(2) tol apart;

@@ -21,7 +21,7 @@ from scipy.spatial.transform import Rotation
 import prismbatch as pb
 from prismbatch.config import MAX_MAGNITUDE
 
-DATA = Path(__file__).resolve().parent / "data"
+DATA = Path(__file__).resolve().parents[1] / "data"
 SQUARE = pb.Prism([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
 
 
@@ -204,6 +204,7 @@ def test_read_only_inputs_are_accepted_everywhere():
     assert pb.collide(a, b, many, rot, pb_, np.eye(3)).hit.all()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("parent, child", [("collide", "collide"), ("collide", "detach"), ("detach", "collide")])
 def test_fork_after_a_parallel_call_gives_working_children(tmp_path, parent, child):
     # detach chooses its kernel through the same fork guard as collide.

@@ -27,6 +27,8 @@ from prismbatch.lab.workprec import (
 )
 from prismbatch.shapes import Prism
 
+pytestmark = [pytest.mark.slow, pytest.mark.needs_fcl]
+
 VERTS = (8, 128, 10000)
 N_POSES = 3000
 B = Prism.regular(6, 1.25)

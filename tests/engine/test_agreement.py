@@ -46,7 +46,7 @@ import pytest
 
 import prismbatch as pb
 
-from conftest import (
+from helpers import (
     LARGE_COUNTS,
     PairData,
     bisect_to_contact,
@@ -63,6 +63,8 @@ from conftest import (
     vertical_pairs,
 )
 from reference import margin_lp, ref_halfline_distance, ref_polygon_distance, ref_strip_distance
+
+pytestmark = [pytest.mark.slow]
 
 RTOL = 1e-9
 LP_REL = 1e-7  # see the module docstring: reference accuracy floor of the band

@@ -8,6 +8,7 @@ origins, tiny objects, mixed scales) drawn by hypothesis.
 """
 
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -23,6 +24,7 @@ def _shared_shape_pairs(name, seed, n=64):
     return pb.Prism(ps.xy_a[0]), pb.Prism(ps.xy_b[0]), ps
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(name=st.sampled_from(sorted(FAMILIES)), seed=st.integers(0, 2**31 - 1))
 def test_one_pair_paths_equal_the_batch(name, seed):
@@ -77,6 +79,7 @@ def test_rotation_forms_equal_matrices(name, seed):
     np.testing.assert_array_equal(as_given.hit, as_matrices.hit)
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(name=st.sampled_from(sorted(FAMILIES)), seed=st.integers(0, 2**31 - 1))
 def test_near_touching_pairs_with_a_known_gap(name, seed):

@@ -15,6 +15,8 @@ import prismbatch.lab.stiff as st
 
 from reference import margin_lp, point_in_prism_residual
 
+pytestmark = [pytest.mark.slow]
+
 
 @pytest.fixture(scope="module")
 def quick_report():

@@ -24,6 +24,8 @@ from prismbatch.lab import validate as V  # noqa: E402
 from prismbatch.lab.exact import margin_lp, point_in_prism_residual  # noqa: E402
 from prismbatch.lab.peers import fcl_standin_length, standin_lengths  # noqa: E402
 
+pytestmark = [pytest.mark.slow, pytest.mark.needs_fcl]
+
 N_SHORT = 5000  # per distribution: 20,000 pairs in all
 
 

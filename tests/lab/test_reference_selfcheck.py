@@ -21,6 +21,8 @@ from reference import (
     ref_strip_distance,
 )
 
+pytestmark = [pytest.mark.slow]
+
 SQ = np.array([[-0.5, -0.5], [0.5, -0.5], [0.5, 0.5], [-0.5, 0.5]])  # unit square, CCW
 R_DOWN = np.diag([1.0, -1.0, -1.0])  # axis d = -z
 I3 = np.eye(3)
@@ -339,6 +341,7 @@ def _check_peer_signs(peer_cls, random_margins):
     return hits
 
 
+@pytest.mark.needs_fcl
 def test_margin_vs_fcl(random_margins):
     pytest.importorskip("fcl")
     from prismbatch.lab.peers import FCLPeer
@@ -346,6 +349,7 @@ def test_margin_vs_fcl(random_margins):
     _check_peer_signs(FCLPeer, random_margins)
 
 
+@pytest.mark.needs_coal
 def test_margin_vs_coal(random_margins):
     pytest.importorskip("coal")
     from prismbatch.lab.peers import CoalPeer
@@ -353,6 +357,7 @@ def test_margin_vs_coal(random_margins):
     _check_peer_signs(CoalPeer, random_margins)
 
 
+@pytest.mark.needs_fcl
 def test_fcl_batch_matches_single(random_margins):
     pytest.importorskip("fcl")
     from prismbatch.lab.peers import FCLPeer
@@ -370,6 +375,7 @@ def test_fcl_batch_matches_single(random_margins):
     assert batch.any() and not batch.all()
 
 
+@pytest.mark.needs_fcl
 def test_fcl_separation_bound(random_margins):
     """For separated finite stand-ins, fcl's distance g >= 2 |margin|."""
     fcl = pytest.importorskip("fcl")

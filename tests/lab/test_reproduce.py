@@ -16,7 +16,9 @@ pytest.importorskip("scipy")
 from prismbatch.cli import main  # noqa: E402
 from prismbatch.lab.reproduce import PARTS  # noqa: E402
 
-ROOT = Path(__file__).resolve().parent.parent
+pytestmark = [pytest.mark.slow, pytest.mark.needs_fcl, pytest.mark.needs_coal]
+
+ROOT = Path(__file__).resolve().parents[2]
 NOTEBOOK = ROOT / "notebooks" / "reproduce.ipynb"
 
 

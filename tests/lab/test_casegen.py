@@ -13,8 +13,10 @@ import pytest
 import prismbatch as pb
 from prismbatch.lab.casegen import CASE_NUMBERS, EXACT_CASES, HIT_AND_MISS_CASES, case_poses
 
-from conftest import collinear_polygon, irregular_polygon
+from helpers import collinear_polygon, irregular_polygon
 from reference import margin_lp
+
+pytestmark = [pytest.mark.slow]
 
 
 def _irregular_off_centre():

@@ -29,7 +29,7 @@ import pytest
 
 from prismbatch import planar
 
-from conftest import hash_str, polygon_centre, random_polygon, sample_vertex_count
+from helpers import hash_str, polygon_centre, random_polygon, sample_vertex_count
 from reference import (
     polygon_halfplanes,
     ref_halfline_distance,
@@ -377,6 +377,7 @@ def _fmt(q):
     return repr(np.asarray(q).tolist())
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", list(KINDS))
 def test_planar_against_reference(kind):
     failures, stats = run_cases(kind, N_CASES, TOL)
@@ -421,6 +422,7 @@ def wedge_distances(P, c, x, slack=1e-9):
     return out
 
 
+@pytest.mark.slow
 def test_point_polygon_against_reference():
     rng = seeded("point")
     failures = []

@@ -12,6 +12,8 @@ from prismbatch.sampling import random_rotations
 
 from reference import margin_lp, point_in_prism_residual
 
+pytestmark = [pytest.mark.slow]
+
 A = pb.Prism.regular(7, 2.0)
 B = pb.Prism.regular(9, 1.5, phase=0.1)
 

@@ -19,6 +19,8 @@ from prismbatch.cli import main
 from prismbatch.control import CONTACT_CLASSES
 from prismbatch.lab.experiment import FIG10_TIMES, format_summary, projected_contour, run_experiment, write_experiment
 
+pytestmark = [pytest.mark.slow, pytest.mark.needs_fcl]
+
 VERTS = 360
 
 
