@@ -21,6 +21,8 @@ from .projection import T_P, T_R, T_TOL, pair_test
 
 # error_model="numpy": with Python's ZeroDivisionError check on 1 / det the
 # facing-pose benchmark measured ~20% slower per pair; det ~ 1 here.
+# Kept as one long function: the per-pair hot path (not split into calls, which would add call and
+# tuple overhead per pair; a measured split is future work).
 @jit(error_model="numpy")
 def pair_world(
     avx,

@@ -69,6 +69,8 @@ def outward_dir(nx, ny, nz, ex, ey, ez, dbx, dby, dbz, dax, day, daz):
     return cx / cn, cy / cn, cz / cn
 
 
+# Kept as one long function: the per-pair hot path (not split into calls, which would add call and
+# tuple overhead per pair; a measured split is future work).
 def detach_loop(
     avx, avy, avang, ainv, aoff, arad, acen, pos_a, rot_a, rot_b, contact, tol, cls_out, dir_out, depth_out
 ):

@@ -4,7 +4,7 @@ Everything here works in a's *centred frame*: origin at the centre of a's end
 face, z along d_a (into a's body). b's pose in that frame is (p, R), so a
 point of b is p + R [u, v, t] with (u, v) in b's polygon (about b's centre)
 and t >= 0. Since a = P_a x [0, inf), the prisms meet iff the projection Q of
-b ∩ {z >= 0} along z meets P_a (NOTES.md). With
+b ∩ {z >= 0} along z meets P_a (exact: a lies in that half-space). With
 
     h = (R20, R21), c = R22 = d_a.d_b (the paper's Δ1), w = (R02, R12),
     z(q, t) = p_z + h.q + c t,   Δ3 = max_q z(q, 0),
@@ -148,6 +148,8 @@ def _near_top_count(bvx, bvy, sb, nb, hx, hy, imax, zmax_h, tol):
     return min(cnt, 3)
 
 
+# Kept as one long function: the per-pair hot path (not split into calls, which would add call and
+# tuple overhead per pair; a measured split is future work).
 @jit
 def pair_test(
     avx,
