@@ -14,7 +14,7 @@ What is measured (see benchmarks/README.md for how to run it):
   objects) + collide with a fresh request/result, the geometry being built
   once;
 * agreement of the hit flags on that subset (the peers use finite stand-ins
-  of length ``fcl_standin_length``; disagreements are counted, adjudicated
+  of length ``standin_length`` (proven per pair); disagreements are counted, adjudicated
   with the LP reference of tests/reference.py when available, and written out
   with reproducers, never treated as failures);
 * first-call (compile) time of the serial and of the parallel kernel in fresh
@@ -174,7 +174,7 @@ def _load_reference():
 # ---------------------------------------------------------------------------
 def bench_cell(n, pose_name, args, all_threads, ref, log, waiter):
     import prismbatch as pb
-    from prismbatch.lab.peers import CoalPeer, FCLPeer, fcl_standin_length
+    from prismbatch.lab.peers import CoalPeer, FCLPeer, standin_length
 
     load_start = _loadavg()
     snap0 = _cpu_snapshot()
@@ -259,7 +259,7 @@ def bench_cell(n, pose_name, args, all_threads, ref, log, waiter):
         res_sub = col.collide(*sub, parallel=False)
         rows["sub_pb_1t_status"] = measure(pb_call(*sub, False, False), rep, M)
 
-    length = max(fcl_standin_length(a.xy, b.xy, sub[0][k], sub[2][k]) for k in range(M))
+    length = standin_length(a.xy, b.xy, *(x[:M] for x in sub))
     items = FCLPeer.prepare(*sub)
     peer_hits = {}
     fpeer = FCLPeer(a.xy, b.xy, length)

@@ -82,6 +82,17 @@ def fcl_standin_length(xy_a, xy_b, pos_a, pos_b) -> float:
     return 4.0 * (float(np.linalg.norm(pa - pb)) + max_radius(xy_a) + max_radius(xy_b))
 
 
+def standin_length(xy_a, xy_b, pos_a, rot_a, pos_b, rot_b):
+    """One stand-in length for a whole pose set: the largest :func:`standin_lengths` over its pairs.
+
+    Finite stand-ins of this length have the collision status of the
+    semi-infinite prisms for every pair of the set (pairs whose bound was
+    capped, axes parallel within about 1e-6 rad, excepted; see
+    :func:`standin_lengths`). For a peer built once and queried at many poses.
+    """
+    return float(np.max(standin_lengths(xy_a, xy_b, pos_a, rot_a, pos_b, rot_b).length))
+
+
 class StandinLengths(NamedTuple):
     """Result of :func:`standin_lengths` (all arrays of shape (N,))."""
 

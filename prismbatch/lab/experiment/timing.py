@@ -27,11 +27,11 @@ def _best_of(repeats, call):
 
 def _fcl_replay(res, shape_a, shape_b, repeats):
     """The same poses through python-fcl on finite stand-ins (raises ImportError without it)."""
-    from ..peers import FCLPeer, fcl_standin_length
+    from ..peers import FCLPeer, standin_length
 
     g = res.geometry
     out = {}
-    L = max(fcl_standin_length(shape_a.xy, shape_b.xy, g["pos_a"], p) for p in res.dc)
+    L = standin_length(shape_a.xy, shape_b.xy, g["pos_a"], g["rot_a"], res.dc, g["rot_b"])
     t0 = time.perf_counter()
     peer = FCLPeer(shape_a.xy, shape_b.xy, L)
     out["fcl_build_s"] = time.perf_counter() - t0

@@ -151,9 +151,9 @@ def _scene_poses(n, a, b, cases, poses_per_case, seed, missing):
 
 def _scene_peers(a, b, poses, peers, notes):
     """The peers of one vertex count, on stand-ins long enough for every pose of every case."""
-    from ..peers import fcl_standin_length
+    from ..peers import standin_length
 
-    length = max(fcl_standin_length(a.xy, b.xy, P[0][k], P[2][k]) for P in poses.values() for k in range(len(P[0])))
+    length = max(standin_length(a.xy, b.xy, *P) for P in poses.values())
     return _make_peers(peers, a.xy, b.xy, length, notes) if peers else {}
 
 

@@ -220,9 +220,9 @@ def measure_compile(probe, shape_b, arrays, items):
 
 def fcl_standins(probe, shape_b, P):
     """python-fcl's stand-in length ``L`` (largest over the poses) and its prepared poses."""
-    from ..peers import FCLPeer, fcl_standin_length  # noqa: PLC0415
+    from ..peers import FCLPeer, standin_length  # noqa: PLC0415
 
-    L = max(fcl_standin_length(probe.xy, shape_b.xy, P.pos_a[k], P.pos_b[k]) for k in range(len(P)))
+    L = standin_length(probe.xy, shape_b.xy, P.pos_a, P.rot_a, P.pos_b, P.rot_b)
     return L, FCLPeer.prepare(P.pos_a, P.rot_a, P.pos_b, P.rot_b)
 
 
