@@ -66,9 +66,14 @@ def pair_world(
     ox = Pa[0] + Ra[0, 0] * cax + Ra[0, 1] * cay
     oy = Pa[1] + Ra[1, 0] * cax + Ra[1, 1] * cay
     oz = Pa[2] + Ra[2, 0] * cax + Ra[2, 1] * cay
-    dx = Pb[0] + Rb[0, 0] * cbx + Rb[0, 1] * cby - ox
-    dy = Pb[1] + Rb[1, 0] * cbx + Rb[1, 1] * cby - oy
-    dz = Pb[2] + Rb[2, 0] * cbx + Rb[2, 1] * cby - oz
+    # b's centre relative to a's, differences first: (Pb - Pa) is exact for
+    # nearby positions, so small objects far from the origin keep every bit
+    # of their separation (summing world coordinates first rounds it to
+    # eps |P|, which for 1e-6 objects at 1e6 reached tol and missed gaps
+    # just below it).
+    dx = (Pb[0] - Pa[0]) + ((Rb[0, 0] * cbx + Rb[0, 1] * cby) - (Ra[0, 0] * cax + Ra[0, 1] * cay))
+    dy = (Pb[1] - Pa[1]) + ((Rb[1, 0] * cbx + Rb[1, 1] * cby) - (Ra[1, 0] * cax + Ra[1, 1] * cay))
+    dz = (Pb[2] - Pa[2]) + ((Rb[2, 0] * cbx + Rb[2, 1] * cby) - (Ra[2, 0] * cax + Ra[2, 1] * cay))
     # b's pose in a's centred frame, p = Ra^-1 d and R = Ra^-1 Rb, with the
     # exact inverse (rows a1 x a2, a2 x a0, a0 x a1 over det): the body is
     # the affine image of the matrix as given, whose rounding from

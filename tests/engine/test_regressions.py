@@ -4,11 +4,15 @@ Each case is checked against an independent certificate: a positive LP margin
 (the bodies overlap) or a pair of witness points within tol.
 """
 
+import json
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 import prismbatch as pb
 from prismbatch._kernels.planar import extreme_vertex
+from prismbatch.collide import pair_scale_tolerance
 
 from reference import margin_lp, point_in_prism_residual
 
@@ -602,3 +606,37 @@ def test_no_hit_beyond_the_tolerance_bound(case):
         assert not r.hit[0]
     elif r.case[0] not in (7, 8, 9):
         assert not r.hit[0]  # beyond sqrt(2) tol outside the perpendicular cases
+
+
+DATA = Path(__file__).resolve().parents[1] / "data"
+
+
+def _tiny_far_pairs():
+    doc = json.loads((DATA / "tiny_far_gap_below_tol.json").read_text())
+    f = lambda v: np.array([float.fromhex(x) for x in v])  # noqa: E731
+    for rec in doc["pairs"]:
+        xy = lambda k: np.array([[float.fromhex(x) for x in p] for p in rec[k]])  # noqa: E731
+        yield (
+            xy("xy_a"),
+            f(rec["pos_a"]),
+            f(rec["rot_a"]).reshape(3, 3),
+            xy("xy_b"),
+            f(rec["pos_b"]),
+            f(rec["rot_b"]).reshape(3, 3),
+            float.fromhex(rec["tol"]),
+            rec["exact"],
+        )
+
+
+def test_tiny_objects_far_from_the_origin_within_tol_hit():
+    # Certified gaps of 0.98-0.998 tol between 1e-6 objects about 1e6 from the
+    # world origin: the relative position must not be rounded to eps |P|.
+    pairs = list(_tiny_far_pairs())
+    assert len(pairs) == 5
+    for xa, pa, ra, xb, pb_, rb, tol, exact in pairs:
+        assert exact["verdict"] == "hit" and exact["gap_over_tol"] < 1.0
+        A, B = pb.Prism(xa), pb.Prism(xb)
+        _, t = pair_scale_tolerance(A, B, pa[None], ra[None], pb_[None], rb[None])
+        assert t[0] == tol
+        assert pb.collide(A, B, pa, ra, pb_, rb).hit[0]
+        assert pb.Collider(A, B).collide_pair(pa, ra, pb_, rb).hit
