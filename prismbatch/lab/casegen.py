@@ -5,35 +5,8 @@ the whole end face exactly on a's plane, exactly perpendicular axes), yet a
 timing study per case and the Monte Carlo ``degenerate`` distribution need
 plenty of them. :func:`case_poses` builds them directly.
 
-Construction (all in a's *centred frame* F: origin at the centre of a's end
-face, z along d_a, so a's body is ``z >= 0``; b is given by the position ``p``
-of its end-face centre and its rotation ``R`` in F):
-
-1. **Orientation.** The last row of ``R`` (the heights of b's local axes) is
-   set first: ``R[2] = (sin θ ĥ, ±cos θ)``, where ĥ picks the lowest part of
-   b's end face (a vertex: the bisector of its normal cone; an edge: its
-   outward normal; or random) and the angle between the axes is chosen per
-   case. Perpendicular axes use ``R[2, 2] = 0.0`` exactly, coplanar faces
-   ``R[2] = (0, 0, -1)`` exactly. A random spin about a's axis sets the rest.
-2. **Height.** ``p_z = Δ3 - max_q (R[2, :2] . q)`` puts b's deepest end-face
-   point at the requested Δ3 (0 for the touching cases 2-4, 7, 8).
-3. **Lateral placement.** An *anchor* point of b that lies in a's half-space
-   (the touching vertex, a point of the touching edge or face, the deepest
-   vertex, a point of the axis-parallel edge, ...) is put at a random point
-   strictly inside a's polygon: a sure hit. Moving b laterally along a
-   direction ``u`` with ``u . d_b >= 0`` by a length ``L`` chosen so that a
-   separating plane normal to ``u`` exists gives a sure miss; the set of hitting
-   lateral offsets is convex, so a bisection with :func:`prismbatch.collide`
-   finds the boundary between them, and hits are drawn before it and misses
-   (mostly near misses) after it. Case 5 is placed directly beyond the coarse
-   test's reach, case 1 anywhere.
-4. **World pose.** F is mapped to the world by a rigid transform: by default
-   the paper's scene (a at the origin, axis down: ``rot_a = diag(1, -1, -1)``),
-   or with ``world_transform=True`` a random one.
-5. **Verification.** Every pose is run through :func:`prismbatch.collide`; poses
-   whose case or hit status differs are drawn again, a bounded number of
-   times (e.g. case 6 near misses that the coarse test already rejects, which
-   prismbatch labels case 5).
+How the poses are built (orientation, height, lateral placement by bisection, world pose,
+verification): ``docs/methods/case-poses.md``.
 """
 
 from __future__ import annotations
