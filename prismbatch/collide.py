@@ -10,7 +10,15 @@ import numpy as np
 from ._kernels import batch as _batch
 from ._kernels.projection import CASES
 from .config import MAX_RTOL, SUPPORTED_RANGE
-from .poses import ORTHO_HINT, as_pose, common_batch_size, ortho_tolerance, real_scalar
+from .poses import (
+    as_pose,
+    check_flag,
+    common_batch_size,
+    ortho_tolerance,
+    position_message,
+    real_scalar,
+    rotation_message,
+)
 from .shapes import as_prism_set
 
 __all__ = ["collide", "Collider", "CollisionResult", "PairResult", "CASES", "DEFAULT_RTOL", "pair_scale_tolerance"]
@@ -137,9 +145,9 @@ class Collider:
         """Test the pose pairs; see :func:`collide` for the arguments."""
         if pos_b is None:
             raise TypeError("collide needs a pose for b: pos_b (and rot_b, or a 4x4 transform as pos_b)")
-        _check_flag(contact, "contact")
+        check_flag(contact, "contact")
         if parallel is not None:
-            _check_flag(parallel, "parallel")
+            check_flag(parallel, "parallel")
         if self._is_single_pair(pos_a, rot_a, pos_b, rot_b, quat_order):
             # One plain pair: the compiled one-pair path (same kernel, far less Python).
             r = self.collide_pair(pos_a, rot_a, pos_b, rot_b)
@@ -273,12 +281,6 @@ class Collider:
         return a
 
 
-def _check_flag(x, name):
-    """TypeError unless ``x`` is a bool (a string such as 'no' is not False)."""
-    if not isinstance(x, (bool, np.bool_)):
-        raise TypeError(f"{name} must be True or False, got {type(x).__name__} {x!r}")
-
-
 def _kernel_array(x, shape, dtype):
     """``x`` as a C-contiguous, writeable array of ``dtype`` (copied only if needed).
 
@@ -292,18 +294,9 @@ def _kernel_array(x, shape, dtype):
 def _pair_problem(code, val, ortho_tol, max_magnitude):
     """The message of a problem code of the one-pair kernel (the same words as :func:`as_pose`)."""
     body, kind = "ab"[(code - 1) // 4], (code - 1) % 4  # codes 1-4 for a, 5-8 for b
-    name = ("pos_" if kind == 0 else "rot_") + body
     if kind == 0:
-        if not np.isfinite(val):
-            return f"{name} contains non-finite values (NaN or inf)"
-        return (
-            f"{name} has a coordinate {val:g} outside the supported range |x| <= {max_magnitude:g}; rescale the units"
-        )
-    if kind == 1:
-        return f"{name} contains non-finite values (NaN or inf)"
-    if kind == 2:
-        return f"{name} is not orthonormal: max |R^T R - I| = {val:.3e} > {ortho_tol:.3g}; {ORTHO_HINT}"
-    return f"{name} is a reflection (det = {val:.6g}); a rotation must have det = +1"
+        return position_message("pos_" + body, val, max_magnitude)
+    return rotation_message("rot_" + body, kind, val, ortho_tol)  # kinds 1-3 of first_bad_rotation
 
 
 class PairResult(NamedTuple):

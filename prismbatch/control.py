@@ -32,7 +32,7 @@ import numpy as np
 from ._kernels.batch import use_parallel
 from ._kernels.detach import detach_parallel, detach_serial
 from .config import NOT_A_CONTACT_RTOL
-from .poses import as_pose, as_real_array, as_rotations, common_batch_size, indexed_name, real_scalar
+from .poses import as_pose, as_real_array, as_rotations, check_flag, common_batch_size, indexed_name, real_scalar
 from .shapes import as_prism_set
 
 __all__ = ["detach", "DetachResult", "CONTACT_CLASSES"]
@@ -183,8 +183,7 @@ def detach(shape_a, contact, pos_a, rot_a, rot_b, state_error, *, eps=10.0, tol=
     direction = np.empty((n, 3))
     depth = np.empty(n)
     cc = np.ascontiguousarray(np.broadcast_to(c, (n, 3)))
-    if parallel is not None and not isinstance(parallel, (bool, np.bool_)):
-        raise TypeError(f"parallel must be True, False or None, got {parallel!r}")
+    check_flag(parallel, "parallel", allow_none=True)
     kern = detach_parallel if use_parallel(parallel, n) else detach_serial
     kern(
         set_a.vx,

@@ -170,13 +170,34 @@ def _check_positions(p64: np.ndarray, name: str, batched: bool, what: str = "", 
     rows = ok.reshape(p64.shape[0], -1).all(axis=1) if batched else ok.reshape(1, -1).all(axis=1)
     i = int(np.flatnonzero(~rows)[0])
     v = float(np.ravel(p64[i] if batched else p64)[np.flatnonzero(~np.ravel(ok[i] if batched else ok))[0]])
-    where = indexed_name(name, i if batched else None) + what
-    if not math.isfinite(v):
-        raise ValueError(f"{where} contains non-finite values (NaN or inf)")
-    raise ValueError(
-        f"{where} has a coordinate {v:g} outside the supported range |x| <= {limit:g}"
-        f"{' for float32' if limit != SUPPORTED_RANGE['float64'][1] else ''}; rescale the units"
+    raise ValueError(position_message(indexed_name(name, i if batched else None) + what, v, limit))
+
+
+def position_message(where: str, value: float, limit: float) -> str:
+    """The message for a position coordinate ``value`` that is NaN, inf or beyond ``limit`` (every path)."""
+    if not math.isfinite(value):
+        return f"{where} contains non-finite values (NaN or inf)"
+    dtype_note = " for float32" if limit != SUPPORTED_RANGE["float64"][1] else ""
+    return (
+        f"{where} has a coordinate {value:g} outside the supported range |x| <= {limit:g}{dtype_note}; "
+        "rescale the units"
     )
+
+
+def rotation_message(where: str, kind: int, value: float, tol: float) -> str:
+    """The message for a rotation that :func:`first_bad_rotation` flagged with ``kind`` 1, 2 or 3 (every path)."""
+    if kind == 1:
+        return f"{where} contains non-finite values (NaN or inf)"
+    if kind == 2:
+        return f"{where} is not orthonormal: max |R^T R - I| = {value:.3e} > {tol:.3g}; {ORTHO_HINT}"
+    return f"{where} is a reflection (det = {value:.6g}); a rotation must have det = +1"
+
+
+def check_flag(x, name: str, *, allow_none: bool = False) -> None:
+    """TypeError unless ``x`` is a bool (or None where allowed): a string such as 'no' is not False."""
+    if not (isinstance(x, (bool, np.bool_)) or (allow_none and x is None)):
+        allowed = "True, False or None" if allow_none else "True or False"
+        raise TypeError(f"{name} must be {allowed}, got {type(x).__name__} {x!r}")
 
 
 def _check_rotation_matrices(R64: np.ndarray, name: str, tol: float, batched: bool, what: str = "") -> None:
@@ -188,13 +209,8 @@ def _check_rotation_matrices(R64: np.ndarray, name: str, tol: float, batched: bo
     if Rb.shape[0] == 0:
         return
     i, kind, val = first_bad_rotation(Rb, tol)
-    where = indexed_name(name, int(i) if batched else None)
-    if kind == 1:
-        raise ValueError(f"{where}{what} contains non-finite values (NaN or inf)")
-    if kind == 2:
-        raise ValueError(f"{where}{what} is not orthonormal: max |R^T R - I| = {val:.3e} > {tol:.3g}; {ORTHO_HINT}")
-    if kind == 3:
-        raise ValueError(f"{where}{what} is a reflection (det = {val:.6g}); a rotation must have det = +1")
+    if kind != 0:
+        raise ValueError(rotation_message(indexed_name(name, int(i) if batched else None) + what, kind, val, tol))
 
 
 def _quat_to_matrix(q64: np.ndarray, order: str) -> np.ndarray:
