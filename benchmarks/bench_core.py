@@ -34,7 +34,6 @@ from __future__ import annotations
 import argparse
 import csv
 import datetime as _dt
-import gc
 import importlib.util
 import json
 import os
@@ -48,6 +47,8 @@ from pathlib import Path
 
 import numpy as np
 
+from prismbatch.lab.report import fmt
+from prismbatch.lab.timing import cpu_snapshot, other_load, threads, timed_loops
 from prismbatch.sampling import facing_poses, free_poses
 
 HERE = Path(__file__).resolve().parent
@@ -81,24 +82,9 @@ POSE_SETS = {"facing": poses_facing, "free": poses_free}
 # ---------------------------------------------------------------------------
 def time_repeats(fn, repeats, warmup=1):
     """Run fn() warmup + repeats times; wall and process-CPU seconds per repeat."""
-    for _ in range(warmup):
-        fn()
-    walls, cpus = [], []
-    gc_was_enabled = gc.isenabled()
-    gc.disable()
-    try:
-        for _ in range(repeats):
-            c0 = time.process_time()
-            t0 = time.perf_counter()
-            fn()
-            t1 = time.perf_counter()
-            c1 = time.process_time()
-            walls.append(t1 - t0)
-            cpus.append(c1 - c0)
-    finally:
-        if gc_was_enabled:
-            gc.enable()
-    return np.array(walls), np.array(cpus)
+    cpu = {}
+    walls = timed_loops({"fn": fn}, repeats, cpu=cpu, cpu_clock=time.process_time, warmup=warmup)["fn"]
+    return np.array(walls), np.array(cpu["fn"])
 
 
 def summarize(walls, cpus, n_pairs):
@@ -134,24 +120,6 @@ def thread_use(fn, min_seconds=0.4):
     return (time.process_time() - c0) / (t1 - t0)
 
 
-class threads:
-    """Context manager: numba.set_num_threads(k), restored afterwards."""
-
-    def __init__(self, k):
-        self.k = k
-
-    def __enter__(self):
-        import numba
-
-        self.old = numba.get_num_threads()
-        numba.set_num_threads(self.k)
-
-    def __exit__(self, *exc):
-        import numba
-
-        numba.set_num_threads(self.old)
-
-
 # ---------------------------------------------------------------------------
 # peers
 # ---------------------------------------------------------------------------
@@ -177,7 +145,7 @@ def bench_cell(n, pose_name, args, all_threads, ref, log, waiter):
     from prismbatch.lab.peers import CoalPeer, FCLPeer, standin_length
 
     load_start = _loadavg()
-    snap0 = _cpu_snapshot()
+    snap0 = cpu_snapshot()
     rng = np.random.default_rng([args.seed, n, list(POSE_SETS).index(pose_name)])
     pos_a, rot_a, pos_b, rot_b = POSE_SETS[pose_name](rng, args.n_pairs)
     a = pb.Prism.regular(n, RADIUS_A)
@@ -190,14 +158,14 @@ def bench_cell(n, pose_name, args, all_threads, ref, log, waiter):
         """time_repeats + summarize; with --wait-idle, re-measure (up to 2 more
         times) when other processes kept a CPU busy during the measurement."""
         for attempt in range(3):
-            s0 = _cpu_snapshot()
+            s0 = cpu_snapshot()
             walls, cpus = time_repeats(fn, repeats, warmup)
             # /proc/stat counts in clock ticks: judge other processes over >= 0.5 s
             # (padding a short measurement with a sleep when waiting is enabled).
             short = time.perf_counter() - s0[0] < 0.5
             if short and waiter.active:
                 time.sleep(0.5 - (time.perf_counter() - s0[0]))
-            other = None if short and not waiter.active else _other_load(s0, _cpu_snapshot())
+            other = None if short and not waiter.active else other_load(s0, cpu_snapshot())
             if not waiter.active or other is None or other < waiter.threshold or attempt == 2:
                 break
             log(f"  contended measurement ({other:.2f} other CPUs busy): waiting, re-measuring")
@@ -319,7 +287,7 @@ def bench_cell(n, pose_name, args, all_threads, ref, log, waiter):
                     entry["lp_error"] = f"{type(exc).__name__}: {exc}"
             repro.append(entry)
 
-    other = _other_load(snap0, _cpu_snapshot())
+    other = other_load(snap0, cpu_snapshot())
     lp = [e for e in repro if "verdict" in e]
     for name in agreement:
         mine = [e for e in lp if e["peer"] == name]
@@ -398,26 +366,6 @@ def compile_times(log):
 # ---------------------------------------------------------------------------
 # machine info and output
 # ---------------------------------------------------------------------------
-def _cpu_snapshot():
-    """(wall s, busy CPU-seconds of the whole machine, CPU-seconds of this process)."""
-    busy = None
-    try:
-        with open("/proc/stat") as fh:
-            f = [int(x) for x in fh.readline().split()[1:]]
-        idle = f[3] + (f[4] if len(f) > 4 else 0)  # idle + iowait
-        busy = (sum(f[:8]) - idle) / os.sysconf("SC_CLK_TCK")
-    except (OSError, ValueError):
-        pass
-    return time.perf_counter(), busy, time.process_time()
-
-
-def _other_load(s0, s1):
-    """Average number of CPUs kept busy by OTHER processes between two snapshots."""
-    if s0[1] is None or s1[1] is None or s1[0] <= s0[0]:
-        return None
-    return max(0.0, ((s1[1] - s0[1]) - (s1[2] - s0[2])) / (s1[0] - s0[0]))
-
-
 class IdleWaiter:
     """Waits for other processes to leave the CPUs idle, within a total budget.
 
@@ -442,9 +390,9 @@ class IdleWaiter:
         t0 = time.perf_counter()
         warned = False
         while self.left > 0.0:
-            s0 = _cpu_snapshot()
+            s0 = cpu_snapshot()
             time.sleep(self.window)
-            other = _other_load(s0, _cpu_snapshot())
+            other = other_load(s0, cpu_snapshot())
             self.left -= self.window
             if other is None or other < self.threshold:
                 break
@@ -523,15 +471,7 @@ def machine_info():
 
 
 def _fmt(x):
-    if x is None or not np.isfinite(x):
-        return "–"
-    if x >= 100:
-        return f"{x:.0f}"
-    if x >= 10:
-        return f"{x:.1f}"
-    if x >= 1:
-        return f"{x:.2f}"
-    return f"{x:.3f}"
+    return fmt(x, none="–")
 
 
 def _cell(rows, key):

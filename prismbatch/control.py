@@ -5,22 +5,9 @@ contact point lies on a. :func:`detach` classifies the contact into the six
 rows of eq. (42) and returns the direction and the force
 ``u_d = eps * |dx| * c``.
 
-Sign conventions (the paper leaves the orientation of its edge vectors
-implicit): every direction is made to point *out of a*. With e the edge (or,
-at a vertex, the sum of the two edges beside it, v_next - v_prev) and n the
-outward normal of a's side face (or the outward bisector at the vertex)::
-
-  row 1 vertex of a's end face   d_v = d_b projected on the plane normal to e;
-                                 c_v = d_v if d_v . n >= 0, else the unit vector
-                                 normal to e and d_v that points out of a (eqs. 43-44)
-  row 2 edge of a's end face     the same with the edge vector (eqs. 45-46)
-  row 3 lateral edge of a        n (normal to d_a and to the sum of the edges)
-  row 4 side face of a           n (normal to the side face)
-  row 5 a's end face             -d_a
-  row 6 inside a                 the shortest way out: the outward normal of the
-                                 nearest side face, or -d_a if the end face is
-                                 nearer (the unnumbered equation after (46));
-                                 returned as a unit vector, its length is ``depth``.
+Every direction points *out of a*; the sign conventions the paper leaves
+implicit and the direction chosen for each of the six rows are in
+``docs/methods/detach.md``.
 """
 
 from __future__ import annotations

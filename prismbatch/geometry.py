@@ -16,6 +16,7 @@ __all__ = [
     "max_radius",
     "centroid_radius",
     "rotation_with_axis",
+    "convex_hull",
     "halfplanes",
     "point_in_prism_residual",
 ]
@@ -61,7 +62,7 @@ def centroid_radius(xy):
     return c, max_radius(p, c)
 
 
-def rotation_with_axis(d, spin=0.0):
+def rotation_with_axis(d, spin=0.0, *, exact_axis=False):
     """Rotations whose third column is the unit vector along ``d``, spun by ``spin`` about it.
 
     Parameters
@@ -71,6 +72,10 @@ def rotation_with_axis(d, spin=0.0):
     spin : float or array_like of shape (N,), optional
         Angle about the axis, in radians, from the reference first column
         (x̂, or ŷ where d is close to x̂, made orthogonal to d).
+    exact_axis : bool, optional
+        Take ``d`` as unit vectors as given: the third column is ``d`` bit for
+        bit (constructions that place a face exactly rely on it); by default
+        ``d`` is normalised first.
 
     Returns
     -------
@@ -79,7 +84,8 @@ def rotation_with_axis(d, spin=0.0):
     d = np.asarray(d, dtype=float)
     single = d.ndim == 1
     d = np.atleast_2d(d)
-    d = d / np.linalg.norm(d, axis=1, keepdims=True)
+    if not exact_axis:
+        d = d / np.linalg.norm(d, axis=1, keepdims=True)
     ref = np.where(np.abs(d[:, :1]) < 0.9, np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]]))
     x = ref - np.sum(ref * d, axis=1, keepdims=True) * d
     x /= np.linalg.norm(x, axis=1, keepdims=True)
@@ -104,16 +110,55 @@ def halfplanes(xy):
     return n, np.einsum("ij,ij->i", n, p[ok])
 
 
-def point_in_prism_residual(xy, pos, rot, x) -> float:
+def point_in_prism_residual(xy, pos, rot, x, planes=None) -> float:
     """Largest violated half-space of world point ``x`` against one semi-infinite prism.
 
     ``max(-t, max_i(n_i . q - h_i))`` with ``[q, t] = R^T (x - p)`` and the
     unit outward edge normals n_i: <= 0 inside or on the body, > 0 outside,
     in length units (a lower bound of the Euclidean distance to the body,
-    exact when a single face is violated).
+    exact when a single face is violated). ``planes``: ``halfplanes(xy)``
+    when the caller keeps them (a suite asking many points of one polygon).
     """
     local = np.asarray(rot, dtype=float).reshape(3, 3).T @ (
         np.asarray(x, dtype=float).reshape(3) - np.asarray(pos, dtype=float).reshape(3)
     )
-    n, h = halfplanes(xy)
+    n, h = halfplanes(xy) if planes is None else planes
     return float(max(-local[2], np.max(n @ local[:2] - h)))
+
+
+def _orientation_exact(o, a, b):
+    """Sign of the turn o -> a -> b in rational arithmetic on the float coordinates."""
+    from fractions import Fraction
+
+    ox, oy = Fraction(o[0]), Fraction(o[1])
+    v = (Fraction(a[0]) - ox) * (Fraction(b[1]) - oy) - (Fraction(a[1]) - oy) * (Fraction(b[0]) - ox)
+    return (v > 0) - (v < 0)
+
+
+def convex_hull(points) -> np.ndarray:
+    """Strictly convex hull (counter-clockwise, no repeated end point) of (n, 2) points.
+
+    Andrew's monotone chain; a turn too close to zero for its floating-point
+    value to be trusted is decided in rational arithmetic, so nearly collinear
+    points are kept or dropped correctly. Fewer than 3 distinct points are
+    returned as they are.
+    """
+    pts = sorted(tuple(map(float, p)) for p in np.unique(np.asarray(points, dtype=float), axis=0))
+    if len(pts) < 3:
+        return np.array(pts, dtype=float).reshape(-1, 2)
+
+    def turn(o, a, b):
+        v = (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+        size = abs(a[0] - o[0]) * abs(b[1] - o[1]) + abs(a[1] - o[1]) * abs(b[0] - o[0])
+        return (v > 0) - (v < 0) if abs(v) > 1e-12 * size else _orientation_exact(o, a, b)
+
+    def chain(seq):
+        out = []
+        for p in seq:
+            while len(out) >= 2 and turn(out[-2], out[-1], p) <= 0:
+                out.pop()
+            out.append(p)
+        return out
+
+    lower, upper = chain(pts), chain(pts[::-1])
+    return np.array(lower[:-1] + upper[:-1])

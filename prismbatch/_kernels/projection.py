@@ -14,12 +14,8 @@ part of Q within reach of P_a matters, so t is capped at
 T = (|p_xy| + R_a + R_b + 2 tol) / |w|, which keeps every coordinate bounded
 whatever the angle between the axes (no tan α or sec²α anywhere).
 
-Tolerance: b's half-space test is relaxed to z >= -tol and GJK accepts a 2-D
-gap <= tol. Hence bodies within tol (touching) always report a hit, and a
-reported hit means the Euclidean distance between the bodies is <= sqrt(2) tol.
-When the axes are perpendicular to within the reach (|c| T <= tol / 4), c is
-set to 0 and the relaxation widened by |c| T: still every pair within tol
-hits, and a hit is within sqrt(1 + 1.5^2) tol < 2 tol (cases 7-9).
+Why bodies within tol always hit and a hit lies within 2 tol (cases 7-9
+included): ``docs/methods/projection.md``.
 """
 
 import math

@@ -36,6 +36,11 @@ def _dot(a, b):
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
+def exact_dot(u, v):
+    """Exact ``u . v`` of two float 3-vectors, as a rational."""
+    return _dot([_q(x) for x in u], [_q(x) for x in v])
+
+
 def _sub(a, b):
     return (a[0] - b[0], a[1] - b[1], a[2] - b[2])
 

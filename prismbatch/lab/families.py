@@ -20,8 +20,10 @@ from typing import NamedTuple
 import numpy as np
 
 from ..collide import pair_scale_tolerance
+from ..geometry import convex_hull
 from ..sampling import random_rotations
 from ..shapes import Prism
+from .exact_gap import exact_dot
 
 __all__ = ["PairSet", "FAMILIES", "make_family", "collide_family"]
 
@@ -64,40 +66,10 @@ def _regular(rng, radius):
     return radius * np.column_stack([np.cos(ang), np.sin(ang)])
 
 
-def _orient(o, a, b):
-    """Exact sign of the turn o -> a -> b (floats are exact rationals; Python ints are exact)."""
-    from fractions import Fraction
-
-    ox, oy = Fraction(o[0]), Fraction(o[1])
-    v = (Fraction(a[0]) - ox) * (Fraction(b[1]) - oy) - (Fraction(a[1]) - oy) * (Fraction(b[0]) - ox)
-    return (v > 0) - (v < 0)
-
-
-def _hull(points):
-    """Strictly convex hull (CCW) with an exact orientation test where floats cannot tell."""
-    pts = sorted(tuple(map(float, p)) for p in np.unique(points, axis=0))
-
-    def turn(o, a, b):
-        v = (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
-        size = abs(a[0] - o[0]) * abs(b[1] - o[1]) + abs(a[1] - o[1]) * abs(b[0] - o[0])
-        return (v > 0) - (v < 0) if abs(v) > 1e-12 * size else _orient(o, a, b)
-
-    def chain(seq):
-        out = []
-        for p in seq:
-            while len(out) >= 2 and turn(out[-2], out[-1], p) <= 0:
-                out.pop()
-            out.append(p)
-        return out
-
-    lower, upper = chain(pts), chain(pts[::-1])
-    return np.array(lower[:-1] + upper[:-1])
-
-
 def _random_convex(rng, radius):
     k = int(rng.integers(3, 40))
     pts = rng.normal(size=(k + 3, 2)) * radius
-    return _hull(pts)
+    return convex_hull(pts)
 
 
 def _dense_collinear(rng, radius):
@@ -109,7 +81,7 @@ def _dense_collinear(rng, radius):
     t = np.mod(t, 2 * np.pi)
     ab = radius * rng.uniform(0.6, 1.0, 2)
     pts = np.column_stack([ab[0] * np.cos(t), ab[1] * np.sin(t)])
-    return _hull(pts)
+    return convex_hull(pts)
 
 
 def _polygon(rng, kind, radius):
@@ -194,15 +166,8 @@ def _place_near_touching(xy_a, pos_a, rot_a, xy_b, pos_b, rot_b, gap_over_tol, r
     # -n / +n, judged exactly: an axis off by 1e-16 still crosses the plane
     # (about 1e16 away), and semi-infinite bodies then meet there. Bitwise
     # equal axes keep their distance whatever n.d is.
-    known = bool((da == db).all()) or (_exact_dot(nrm, da) <= 0 and _exact_dot(nrm, db) >= 0)
+    known = bool((da == db).all()) or (exact_dot(nrm, da) <= 0 and exact_dot(nrm, db) >= 0)
     return new_b + gap_over_tol * tol[0] * nrm, known
-
-
-def _exact_dot(u, v):
-    """Exact u . v of float vectors (as rationals)."""
-    from fractions import Fraction
-
-    return sum(Fraction(float(x)) * Fraction(float(y)) for x, y in zip(u, v))
 
 
 # --- families ---------------------------------------------------------------

@@ -26,7 +26,12 @@ from pathlib import Path
 import numpy as np
 
 from .._kernels.projection import CASES
-from .report import jsonable, run_metadata, write_json
+from .report import fmt, jsonable, run_metadata, write_json
+
+
+def _g6(x):
+    return fmt(x, ".6g")  # a trace shows six digits: enough to see a tolerance's scale
+
 
 __all__ = [
     "FORMAT",
@@ -304,13 +309,6 @@ def replay_record(rec):
     return col.explain(arr("pos_a"), arr("rot_a"), arr("pos_b"), arr("rot_b"))
 
 
-def _g(x, digits=6):
-    if x is None:
-        return "-"
-    x = float(x)
-    return "-" if math.isnan(x) else f"{x:.{digits}g}"
-
-
 def _known(e, key):
     return not math.isnan(e[key])
 
@@ -321,11 +319,13 @@ def format_trace(rec, e, *, number=None, total=None):
     src = ", ".join(f"{k} {_text(rec[k])}" for k in _SHOWN if k in rec)
     L = [f"{head}: {_text(rec['kind'])}" + (f" ({src})" if src else "")]
     na, nb = len(rec["shape_a"]), len(rec["shape_b"])
-    L.append(f"  shapes: a {na}-gon, b {nb}-gon; {_text(rec['dtype'])}, rtol {_g(rec['rtol'])}, atol {_g(rec['atol'])}")
+    L.append(
+        f"  shapes: a {na}-gon, b {nb}-gon; {_text(rec['dtype'])}, rtol {_g6(rec['rtol'])}, atol {_g6(rec['atol'])}"
+    )
     saved = rec["prismbatch"]
     refs = rec.get("references") or {}
     ref_txt = ", ".join(
-        f"{_text(k)} {_text(v) if isinstance(v, (bool, str)) or v is None else _g(v)}" for k, v in refs.items()
+        f"{_text(k)} {_text(v) if isinstance(v, (bool, str)) or v is None else _g6(v)}" for k, v in refs.items()
     )
     L.append(
         f"  saved:    prismbatch hit={saved['hit']} case {saved['case']}"
@@ -338,11 +338,11 @@ def format_trace(rec, e, *, number=None, total=None):
     )
     p = (e["p_x"], e["p_y"], e["p_z"])
     L.append(
-        f"  1. b in a's centred frame (origin at a's end-face centre, z into a): p = ({', '.join(_g(v) for v in p)}), "
-        f"d_a.d_b = R22 = {_g(e['R22'], 17)}; tol = {_g(e['tol'])}"
+        f"  1. b in a's centred frame (origin at a's end-face centre, z into a): p = ({', '.join(_g6(v) for v in p)}), "
+        f"d_a.d_b = R22 = {fmt(e['R22'], '.17g')}; tol = {_g6(e['tol'])}"
     )
     L.append(
-        f"  2. deepest vertex of b's end face: #{int(e['i_top'])}, Δ3 = {_g(e['delta3'], 17)} "
+        f"  2. deepest vertex of b's end face: #{int(e['i_top'])}, Δ3 = {fmt(e['delta3'], '.17g')} "
         + (
             "(< -tol: end face beyond a's plane)"
             if e["delta3"] < -e["tol"]
@@ -354,10 +354,10 @@ def format_trace(rec, e, *, number=None, total=None):
     step = 3
     if _known(e, "reach_T"):
         L.append(
-            f"  {step}. reach: |p_xy| = {_g(e['lateral_offset'])}, |w| (b's axis in a's plane) = "
-            f"{_g(e['axis_xy_length'])}, T = {_g(e['reach_T'])}; height drift |c| T = {_g(e['height_drift'])} -> "
+            f"  {step}. reach: |p_xy| = {_g6(e['lateral_offset'])}, |w| (b's axis in a's plane) = "
+            f"{_g6(e['axis_xy_length'])}, T = {_g6(e['reach_T'])}; height drift |c| T = {_g6(e['height_drift'])} -> "
             + (
-                "perpendicular (c taken as 0, height tol widened to " + _g(e["height_tol"]) + ")"
+                "perpendicular (c taken as 0, height tol widened to " + _g6(e["height_tol"]) + ")"
                 if e["perpendicular"] == 1.0
                 else "not perpendicular"
             )
@@ -371,24 +371,24 @@ def format_trace(rec, e, *, number=None, total=None):
     if _known(e, "coarse_margin"):
         if _known(e, "coarse_across"):
             L.append(
-                f"  {step}. coarse test: across the projected axis {_g(e['coarse_across'])}, along it "
-                f"{_g(e['coarse_along'])}, margin R_a + R_b + tol = {_g(e['coarse_margin'])}"
+                f"  {step}. coarse test: across the projected axis {_g6(e['coarse_across'])}, along it "
+                f"{_g6(e['coarse_along'])}, margin R_a + R_b + tol = {_g6(e['coarse_margin'])}"
                 + (
-                    f"; facing: {_g(e['coarse_facing_lhs'])} vs {_g(e['coarse_facing_rhs'])} (reject if left > right)"
+                    f"; facing: {_g6(e['coarse_facing_lhs'])} vs {_g6(e['coarse_facing_rhs'])} (reject if left > right)"
                     if _known(e, "coarse_facing_lhs")
                     else ""
                 )
             )
         else:
             L.append(
-                f"  {step}. coarse test (parallel axes): |p_xy| = {_g(e['lateral_offset'])} vs margin "
-                f"{_g(e['coarse_margin'])}"
+                f"  {step}. coarse test (parallel axes): |p_xy| = {_g6(e['lateral_offset'])} vs margin "
+                f"{_g6(e['coarse_margin'])}"
             )
         step += 1
     if _known(e, "top_vertex_depth_in_Pa"):
         d = e["top_vertex_depth_in_Pa"]
         L.append(
-            f"  {step}. early accept: signed depth of that vertex's projection in P_a = {_g(d)} "
+            f"  {step}. early accept: signed depth of that vertex's projection in P_a = {_g6(d)} "
             + ("(inside: accept)" if d >= 0 else "(outside: go on)")
         )
         step += 1
@@ -400,7 +400,7 @@ def format_trace(rec, e, *, number=None, total=None):
         step += 1
     L.append(
         f"  => exit {e['exit']}: {e['exit_reason']}"
-        + (f"; contact ({', '.join(_g(v) for v in e['contact'])})" if e["hit"] else "")
+        + (f"; contact ({', '.join(_g6(v) for v in e['contact'])})" if e["hit"] else "")
     )
     return L
 

@@ -1,5 +1,6 @@
 """Shared plumbing for everything that writes results: run metadata (package
-versions, CPU, threads), JSON and CSV files, progress bars and figures.
+versions, CPU, threads), number formatting, JSON and CSV files, progress bars
+and figures.
 
 One place for these so that the experiment, validation, timing study and
 ``reproduce`` write files the same way. Optional dependencies (matplotlib,
@@ -26,9 +27,12 @@ __all__ = [
     "jsonable",
     "write_json",
     "write_csv",
+    "fmt",
+    "pct",
     "progress",
     "new_figure",
     "save_figure",
+    "legend_below",
     "MPL_MISSING",
 ]
 
@@ -123,6 +127,30 @@ def write_csv(path, header, rows):
     return str(path)
 
 
+def fmt(x, spec=".3g", none="-", unit=""):
+    """``x`` as text for a table or a log line: the one number formatter of the lab.
+
+    ``none`` stands for None and non-finite floats; integers print whole (``str``)
+    unless ``spec`` says otherwise; with the default ``spec`` a float between 1000
+    and 1e7 prints without exponent (5030, not 5.03e+03); ``unit`` is appended to
+    numbers only; anything else (a string) prints as it is.
+    """
+    if x is None or (isinstance(x, (float, np.floating)) and not math.isfinite(x)):
+        return none
+    if isinstance(x, (bool, np.bool_, str)):
+        return str(x)
+    if isinstance(x, (int, np.integer)) and spec == ".3g":
+        return str(int(x)) + unit
+    if spec == ".3g" and 1000 <= abs(x) < 1e7:
+        return f"{x:.0f}{unit}"
+    return format(x, spec) + unit
+
+
+def pct(x):
+    """A ratio as a percentage with one decimal ("2.8 %"), "-" for None."""
+    return fmt(None if x is None else 100 * x, ".1f", unit=" %")
+
+
 class _NullBar:
     def update(self, n=1):
         pass
@@ -171,3 +199,14 @@ def save_figure(fig, out_dir, name):
         fig.savefig(p, dpi=150 if ext == "png" else None)
         files.append(p)
     return files
+
+
+def legend_below(fig, axes, ncol=3, frameon=True):
+    """One legend under the axes, outside the data, each label once over all ``axes``."""
+    handles, labels = [], []
+    for ax in axes:
+        for h, lab in zip(*ax.get_legend_handles_labels()):
+            if lab not in labels:
+                handles.append(h)
+                labels.append(lab)
+    fig.legend(handles, labels, loc="outside lower center", ncol=ncol, fontsize=8, frameon=frameon)

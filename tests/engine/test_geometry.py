@@ -10,6 +10,7 @@ from prismbatch.geometry import (
     AXIS_DOWN,
     ccw,
     centroid_radius,
+    convex_hull,
     halfplanes,
     max_radius,
     point_in_prism_residual,
@@ -88,3 +89,40 @@ def test_point_in_prism_residual_and_halfplanes(n, phase, seed):
     nrm, h = halfplanes(xy)
     assert len(h) == n
     np.testing.assert_allclose(nrm @ np.mean(xy, axis=0) - h, -1.5 * math.cos(math.pi / n) * np.ones(n), atol=1e-12)
+
+
+def _turn_exact(o, a, b):
+    from fractions import Fraction as F
+
+    v = (F(a[0]) - F(o[0])) * (F(b[1]) - F(o[1])) - (F(a[1]) - F(o[1])) * (F(b[0]) - F(o[0]))
+    return (v > 0) - (v < 0)
+
+
+def _is_strict_hull_of(hull, points):
+    """Plain reference: hull vertices are input points, every turn is strictly left (exact), and
+    no input point lies strictly outside an edge (exact)."""
+    pts = {tuple(p) for p in np.asarray(points, float).tolist()}
+    h = [tuple(p) for p in hull.tolist()]
+    if not all(p in pts for p in h):
+        return False
+    m = len(h)
+    if any(_turn_exact(h[i], h[(i + 1) % m], h[(i + 2) % m]) <= 0 for i in range(m)):
+        return False
+    return all(_turn_exact(h[i], h[(i + 1) % m], q) >= 0 for i in range(m) for q in pts)
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(3, 60), scale=st.sampled_from([1e-9, 1.0, 1e9]))
+def test_convex_hull_is_the_strict_hull(seed, n, scale):
+    pts = np.random.default_rng(seed).normal(size=(n, 2)) * scale
+    assert _is_strict_hull_of(convex_hull(pts), pts)
+
+
+def test_convex_hull_of_nearly_collinear_points_decides_turns_exactly():
+    # Points a few ulps off a long line: float cross products cannot tell the turns apart.
+    x = np.linspace(0.0, 1.0, 41)
+    y = 1e-17 * np.random.default_rng(3).integers(-2, 3, size=41)
+    pts = np.column_stack([x, 0.1 + x * 0.3 + y])
+    pts = np.vstack([pts, [[0.5, -1.0]]])
+    assert _is_strict_hull_of(convex_hull(pts), pts)
+    assert len(convex_hull([[0.0, 0.0], [1.0, 1.0]])) == 2  # fewer than 3 points: as given

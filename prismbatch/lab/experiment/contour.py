@@ -9,30 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ...geometry import convex_hull
 from .model import FIG10_TIMES
-
-
-def hull2d(points):
-    """Convex hull (counter-clockwise, no repeated end point) of (n, 2) points; monotone chain."""
-    p = np.unique(np.round(np.asarray(points, dtype=float), 12), axis=0)
-    if len(p) < 3:
-        return p
-
-    def half(seq):
-        h = []
-        for q in seq:
-            while (
-                len(h) >= 2
-                and ((h[-1][0] - h[-2][0]) * (q[1] - h[-2][1]) - (h[-1][1] - h[-2][1]) * (q[0] - h[-2][0])) <= 0.0
-            ):
-                h.pop()
-            h.append(q)
-        return h
-
-    pts = [tuple(q) for q in p]
-    lower = half(pts)
-    upper = half(reversed(pts))
-    return np.array(lower[:-1] + upper[:-1])
 
 
 def projected_contour(xy_b, pos_b, rot_b, pos_a, rot_a, *, length=None):
@@ -72,7 +50,7 @@ def projected_contour(xy_b, pos_b, rot_b, pos_a, rot_a, *, length=None):
     if len(allp) == 0:
         return np.zeros((0, 2))
     rel = allp - pa
-    return hull2d(np.column_stack([rel @ e1, rel @ e2]))
+    return convex_hull(np.column_stack([rel @ e1, rel @ e2]))
 
 
 def contour_panels(res):

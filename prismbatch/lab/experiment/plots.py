@@ -7,8 +7,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from ...geometry import convex_hull
 from ..report import new_figure, save_figure
-from .contour import contour_panels, hull2d
+from .contour import contour_panels
 from .model import UM
 
 
@@ -90,7 +91,7 @@ def _plot_contours(res, out, name):
 
 
 def _silhouette(points_world, s_axis, z_axis):
-    return hull2d(np.column_stack([points_world @ s_axis, points_world @ z_axis]))
+    return convex_hull(np.column_stack([points_world @ s_axis, points_world @ z_axis]))
 
 
 def _plot_trajectory(res, out, name):

@@ -12,14 +12,14 @@ import numpy as np
 
 from ...collide import CASES
 from ...control import CONTACT_CLASSES
-from ..report import run_metadata, write_csv, write_json
+from ..report import fmt, run_metadata, write_csv, write_json
 from .contour import contour_panels
 from .model import PAPER
 from .plots import plot_experiment
 
 
-def _fmt_t(x):
-    return "-" if x is None else f"{x:.2f} s"
+def _seconds(x):
+    return fmt(x, ".2f", unit=" s")
 
 
 def format_summary(res):
@@ -49,7 +49,7 @@ def format_summary(res):
     lines.append(f"case sequence: {runs}")
     lines.append(
         f"   paper: 5, then 6, then 1 after about {PAPER['case1_after_s']:g} s; "
-        f"here case 1 for good from {_fmt_t(s['case1_for_good_from_s'])}"
+        f"here case 1 for good from {_seconds(s['case1_for_good_from_s'])}"
     )
     inst = "  ".join(f"{tt:g}s:{c}" for tt, c in zip(s["fig10_times_s"], s["fig10_cases"]))
     lines.append(
@@ -201,8 +201,8 @@ def _markdown(res, figure_files):
         f"| case at Fig. 10 instants (0,1,2,3,3.5,4,5,5.9 s) | {' '.join(map(str, PAPER['fig10_cases']))} | "
         f"{' '.join(str(c) for c in s['fig10_cases'])} |"
     )
-    L.append(f"| case 1 for good from | after about 6 s | {_fmt_t(s['case1_for_good_from_s'])} |")
-    L.append(f"| first collision | about 3.5 s | {_fmt_t(s['first_collision_s'])} |")
+    L.append(f"| case 1 for good from | after about 6 s | {_seconds(s['case1_for_good_from_s'])} |")
+    L.append(f"| first collision | about 3.5 s | {_seconds(s['first_collision_s'])} |")
     fc = s["first_contact_class"]
     L.append(
         f"| contact class | 4 (side face) | {fc if fc is not None else '-'}"

@@ -5,24 +5,12 @@ See docs/methods/experiment.md.
 
 from __future__ import annotations
 
-import math
 import time
 
 import numpy as np
 
+from ..timing import best_of
 from .model import batch_poses
-
-
-def _best_of(repeats, call):
-    """Fastest wall time (s) of ``repeats`` calls of ``call()``, and the last call's result."""
-    perf = time.perf_counter
-    best = math.inf
-    out = None
-    for _ in range(repeats):
-        t0 = perf()
-        out = call()
-        best = min(best, perf() - t0)
-    return best, out
 
 
 def _fcl_replay(res, shape_a, shape_b, repeats):
@@ -36,7 +24,7 @@ def _fcl_replay(res, shape_a, shape_b, repeats):
     peer = FCLPeer(shape_a.xy, shape_b.xy, L)
     out["fcl_build_s"] = time.perf_counter() - t0
     items = peer.prepare(g["pos_a"], g["rot_a"], res.dc, g["rot_b"])
-    best, h = _best_of(repeats, lambda: peer.run(items))
+    best, h = best_of(repeats, lambda: peer.run(items))
     out["fcl_ms"] = 1e3 * best
     out["fcl_standin_length_mm"] = float(L)
     out["fcl_hits"] = int(h.sum())
@@ -77,10 +65,10 @@ def replay_timing(res, col, shape_a, shape_b, *, fcl, repeats):
             col.collide_pair(pa, ra, p, rb)
 
     out = {}
-    out["pair_ms"] = 1e3 * _best_of(repeats, pair_loop)[0]
+    out["pair_ms"] = 1e3 * best_of(repeats, pair_loop)[0]
     allp = np.ascontiguousarray(res.dc)
     col.collide(pa1, ra1, allp[:2], rb1, parallel=False)  # the same kernel, warm
-    best, rb_ = _best_of(repeats, lambda: col.collide(pa1, ra1, allp, rb1, parallel=False))
+    best, rb_ = best_of(repeats, lambda: col.collide(pa1, ra1, allp, rb1, parallel=False))
     out["batch_ms"] = 1e3 * best
     out["batch_agrees_with_loop"] = bool(np.array_equal(rb_.hit, res.hit) and np.array_equal(rb_.case, res.case))
     out["fcl_ms"] = None

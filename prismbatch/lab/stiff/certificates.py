@@ -12,7 +12,8 @@ from fractions import Fraction
 
 import numpy as np
 
-from .geometry import ccw
+from ...geometry import point_in_prism_residual
+from .geometry import polygon_planes
 
 EPS64 = float(np.finfo(np.float64).eps)
 
@@ -110,33 +111,9 @@ def _valid_variants(n, fa, fb):
     return out
 
 
-_HP_CACHE = {}
-
-
-def _halfplanes(xy):
-    """Unit outward edge normals (m, 2) and offsets (m,) of a convex polygon (cached by identity)."""
-    key = id(xy)
-    hit = _HP_CACHE.get(key)
-    if hit is not None and hit[0] is xy:
-        return hit[1]
-    p = ccw(np.asarray(xy, float))
-    e = np.roll(p, -1, axis=0) - p
-    ln = np.hypot(e[:, 0], e[:, 1])
-    ok = ln > 0
-    n = np.column_stack([e[ok, 1], -e[ok, 0]]) / ln[ok, None]
-    out = (n, np.einsum("ij,ij->i", n, p[ok]))
-    if len(_HP_CACHE) > 4096:
-        _HP_CACHE.clear()
-    _HP_CACHE[key] = (xy, out)
-    return out
-
-
 def _residual(xy, pos, rot, x):
-    """Largest violation of a world point against one body's half-spaces (<= 0: inside); as
-    :func:`prismbatch.lab.exact.point_in_prism_residual`, vectorised for large polygons."""
-    local = np.asarray(rot, float).T @ (np.asarray(x, float) - np.asarray(pos, float))
-    n, h = _halfplanes(xy)
-    return float(max(-local[2], np.max(n @ local[:2] - h)))
+    """Largest violation of a world point against one body's half-spaces (<= 0: inside), the polygon's planes kept."""
+    return point_in_prism_residual(xy, pos, rot, x, planes=polygon_planes(xy))
 
 
 def contact_certified(xy_a, pos_a, rot_a, xy_b, pos_b, rot_b, x, tol, eps=EPS64):

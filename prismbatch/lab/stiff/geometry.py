@@ -12,6 +12,7 @@ import math
 
 import numpy as np
 
+from ...geometry import centroid_radius, halfplanes, rotation_with_axis
 from ...shapes import validate_polygon
 
 #: a's orientation in every constructed family: axis down, d_a = -z, end plane z = p_a[2].
@@ -39,13 +40,7 @@ def axis_rotation(axis, angle):
 
 def with_axis(d, spin):
     """A rotation whose third column is exactly ``d`` (unit, given), spun by ``spin`` about it."""
-    d = np.asarray(d, float)
-    ref = np.array([1.0, 0.0, 0.0]) if abs(d[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    x = ref - (ref @ d) * d
-    x /= np.linalg.norm(x)
-    y = np.cross(d, x)
-    c, s = math.cos(spin), math.sin(spin)
-    return np.column_stack([c * x + s * y, -s * x + c * y, d])
+    return rotation_with_axis(d, spin, exact_axis=True)
 
 
 def random_polygon(rng, n=None, radius=1.0, *, aspect=None, regular=None, offset=0.3):
@@ -170,24 +165,29 @@ def push(shift, W, v, n2):
     return -min(-shift, 0.5 * chord)
 
 
-_CR_CACHE = {}
+def by_identity(fn):
+    """``fn(xy)`` remembered per polygon object: the suite asks the same large polygons
+    thousands of times (kept while the object lives; the cache is cleared past 4096)."""
+    cache = {}
+
+    def cached(xy):
+        hit = cache.get(id(xy))
+        if hit is not None and hit[0] is xy:
+            return hit[1]
+        out = fn(xy)
+        if len(cache) > 4096:
+            cache.clear()
+        cache[id(xy)] = (xy, out)
+        return out
+
+    cached.__doc__ = fn.__doc__
+    return cached
 
 
-def centre_radius(xy):
-    """Area centroid (2,) and radius about it of a convex polygon (cached for large ones)."""
-    key = id(xy) if len(xy) > 1000 else None
-    if key is not None and key in _CR_CACHE and _CR_CACHE[key][0] is xy:
-        return _CR_CACHE[key][1]
-    p = ccw(np.asarray(xy, float))
-    x0 = p.mean(axis=0)
-    v = p - x0
-    vn = np.roll(v, -1, axis=0)
-    cr = v[:, 0] * vn[:, 1] - vn[:, 0] * v[:, 1]
-    c = np.array([((v[:, 0] + vn[:, 0]) * cr).sum(), ((v[:, 1] + vn[:, 1]) * cr).sum()]) / (3 * cr.sum()) + x0
-    out = (c, float(np.max(np.hypot(*(p - c).T))))
-    if key is not None:
-        _CR_CACHE[key] = (xy, out)
-    return out
+#: Area centroid (2,) and radius about it of a convex polygon (:func:`prismbatch.geometry.centroid_radius`).
+centre_radius = by_identity(centroid_radius)
+#: Unit outward edge normals and offsets of a convex polygon (:func:`prismbatch.geometry.halfplanes`).
+polygon_planes = by_identity(halfplanes)
 
 
 def world_centres(xy_a, pos_a, rot_a, xy_b, pos_b, rot_b):

@@ -8,7 +8,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..report import write_csv, write_json
+from ..report import fmt, write_csv, write_json
 
 _COLS = (
     "family",
@@ -31,14 +31,6 @@ _COLS = (
     "max_departure_tol64",
     "cases",
 )
-
-
-def _fmt(v):
-    if isinstance(v, float):
-        if v == int(v) and abs(v) < 1e7:
-            return str(int(v))
-        return f"{v:.3g}"
-    return str(v)
 
 
 @dataclass
@@ -115,7 +107,7 @@ class StiffReport:
             out.append(
                 f"  float32 departs in {len(dep)} sets; largest |gap|/S {worst['max_departure_rel']:.3g} "
                 f"({worst['max_departure_tol64']:.3g} float64 tol) in {worst['family']} "
-                f"{worst['param']}={_fmt(worst['value'])}"
+                f"{worst['param']}={fmt(worst['value'])}"
             )
         return out
 
@@ -165,7 +157,7 @@ class StiffReport:
         ]
         for r in self._f64():
             L.append(
-                f"| {r['family']} | {r['param']} | {_fmt(r['value'])} | {r['truth']} | {r['pairs']} | "
+                f"| {r['family']} | {r['param']} | {fmt(r['value'])} | {r['truth']} | {r['pairs']} | "
                 f"{r['hits']} | {r['non_finite']} | {r['disagreements_outside_band']} | {r['inside_band']} | "
                 f"{r['unresolved']} | {r['certified_over_lp']} | {r['contact_outside_2tol']} | {r['cases']} |"
             )
@@ -190,9 +182,9 @@ class StiffReport:
             ]
             for r in f32:
                 L.append(
-                    f"| {r['family']} | {r['param']} | {_fmt(r['value'])} | {r['pairs']} | {r['hits']} | "
+                    f"| {r['family']} | {r['param']} | {fmt(r['value'])} | {r['pairs']} | {r['hits']} | "
                     f"{r['non_finite']} | {r['departures']} | {r['departures_hit']} | "
-                    f"{_fmt(r['max_departure_rel'])} | {_fmt(r['max_departure_tol64'])} | "
+                    f"{fmt(r['max_departure_rel'])} | {fmt(r['max_departure_tol64'])} | "
                     f"{r['disagreements_outside_band']} | {r['rounding_explained']} | {r['unresolved']} | "
                     f"{r['contact_outside_2tol']} |"
                 )

@@ -4,10 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..report import new_figure, save_figure
+from ..report import legend_below, new_figure, pct, save_figure
 from .analysis import average_series, growth_row
 from .constants import PAPER_GROWTH_MS_PER_1000, PEERS
-from .report import pct
 
 _SHORT = {"fcl": "FCL", "coal": "coal"}
 _METHOD_STYLE = {"prismbatch": ("C0", "o"), "prismbatch_batch1": ("C9", "v"), "fcl": ("C3", "s"), "coal": ("C2", "^")}
@@ -49,12 +48,6 @@ def _min_max_bars(rows, median, lo, hi):
     return y, [y - np.array([r[lo] for r in rows]), np.array([r[hi] for r in rows]) - y]
 
 
-def _legend_below(fig, ax, ncol=3):
-    """Legend under the axes, outside the data."""
-    h, lab = ax.get_legend_handles_labels()
-    fig.legend(h, lab, loc="outside lower center", ncol=ncol, fontsize=8)
-
-
 def _per_case_axes(ax, res, method):
     for case in res.settings["cases"]:
         rows = sorted(
@@ -79,7 +72,7 @@ def _fig7a(res, out_dir):
         f"median of {s['repeats']} repeats over {s['poses_per_case']} poses per case (bars: min-max)",
         fontsize=10,
     )
-    _legend_below(fig, ax, ncol=6)
+    legend_below(fig, [ax], ncol=6)
     return save_figure(fig, out_dir, "study_fig7a_prismbatch")
 
 
@@ -96,7 +89,7 @@ def _fig7b(res, out_dir):
     hi = max(ax.get_ylim()[1] for ax in axes)
     for ax in axes:
         ax.set_ylim(lo, hi)
-    _legend_below(fig, axes[0], ncol=11 if len(peers) > 1 else 6)
+    legend_below(fig, [axes[0]], ncol=11 if len(peers) > 1 else 6)
     return save_figure(fig, out_dir, "study_fig7b_peers")
 
 
@@ -142,7 +135,7 @@ def _fig7c(res, out_dir):
         f"({pct(pg['projection'] / pg['swift'])})",
         fontsize=10,
     )
-    _legend_below(fig, ax, ncol=1)
+    legend_below(fig, [ax], ncol=1)
     return save_figure(fig, out_dir, "study_fig7c_average")
 
 
@@ -225,7 +218,7 @@ def _throughput_figure(res, out_dir):
         "bars: min-max)",
         fontsize=10,
     )
-    _legend_below(fig, ax, ncol=2)
+    legend_below(fig, [ax], ncol=2)
     return save_figure(fig, out_dir, "study_throughput")
 
 

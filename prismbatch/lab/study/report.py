@@ -2,26 +2,12 @@
 
 from __future__ import annotations
 
-import math
 import os
 from pathlib import Path
 
+from ..report import fmt, pct
 from .analysis import growth_row
 from .constants import PAPER_GROWTH_MS_PER_1000, PAPER_SOURCE
-
-
-def fmt(x, spec=".3g", none="-"):
-    """``x`` formatted with ``spec``; ``none`` for None or non-finite; 3 significant digits print 5030, not 5.03e+03."""
-    if x is None or (isinstance(x, float) and not math.isfinite(x)):
-        return none
-    if spec == ".3g" and abs(x) >= 1000:
-        return f"{x:.0f}"  # 5030 rather than 5.03e+03
-    return format(x, spec)
-
-
-def pct(x):
-    """A ratio as a percentage with one decimal ("2.8 %"), "-" for None."""
-    return "-" if x is None else f"{100 * x:.1f} %"
 
 
 def format_study(res):

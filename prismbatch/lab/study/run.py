@@ -17,11 +17,12 @@ from ..casegen import CASE_NUMBERS, case_poses
 from ..checks import check_int, check_int_tuple, is_int
 from ..report import package_versions
 from ..report import progress as progress_bar
+from ..timing import cpu_snapshot, other_load, stats, timed_loops
 from .agreement import agreement_rows
 from .analysis import growth_rows, table1_rows
 from .constants import DEFAULTS, METHODS, PEERS, QUICK, RADIUS_A, RADIUS_B
 from .result import StudyResult
-from .timing import compile_times, cpu_snapshot, other_load, stats, timed_loops
+from .timing import compile_times
 
 # ---------------------------------------------------------------------------
 # argument checks

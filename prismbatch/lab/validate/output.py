@@ -4,10 +4,9 @@ metadata and the replay file of every disagreement (:func:`write_validation`).
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
+from ..report import fmt
 from .config import DISTRIBUTION_NAMES, NC
 
 #: Columns of validation_summary.csv (one row per distribution and a total row).
@@ -303,13 +302,13 @@ def _markdown(result):
     )
     for title, cols in tables:
         L += [f"### {title}", "", "| " + " | ".join(c[0] for c in cols) + " |", "|" + "---|" * len(cols)]
-        L += ["| " + " | ".join(_fmt(r[c[1]]) for c in cols) + " |" for r in rows]
+        L += ["| " + " | ".join(fmt(r[c[1]], none="nan") for c in cols) + " |" for r in rows]
         L.append("")
     L += ["## Per case", ""]
     L.append("| " + " | ".join(h.replace("_", " ") for h in CASES_HEADER) + " |")
     L.append("|" + "---|" * len(CASES_HEADER))
     for row in _case_rows(result):
-        L.append("| " + " | ".join(_fmt(x) for x in row) + " |")
+        L.append("| " + " | ".join(fmt(x, none="nan") for x in row) + " |")
     L += [
         "",
         "## Disagreement records",
@@ -320,12 +319,6 @@ def _markdown(result):
     if result.stiff is not None:
         L += ["", result.stiff.markdown()]
     return "\n".join(L) + "\n"
-
-
-def _fmt(x):
-    if isinstance(x, float):
-        return "nan" if not math.isfinite(x) else f"{x:.3g}"
-    return f"{x}"
 
 
 def _write_replay(path, records, meta):

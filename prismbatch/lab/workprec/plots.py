@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..report import cpu_name, new_figure, save_figure
+from ..report import cpu_name, legend_below, new_figure, save_figure
 from .result import METHODS, method_labels
 
 _STYLE = {  # colour, marker, linestyle
@@ -109,16 +109,6 @@ def _sparse_labels(pts, min_dec=0.14, column=False):
     return out
 
 
-def _legend_below(fig, axes, ncol=2):
-    handles, labels = [], []
-    for ax in axes:
-        for h, lab in zip(*ax.get_legend_handles_labels()):
-            if lab not in labels:
-                handles.append(h)
-                labels.append(lab)
-    fig.legend(handles, labels, loc="outside lower center", ncol=ncol, fontsize=8, frameon=False)
-
-
 def _log_axes(axes, xlabel):
     for ax in axes:
         ax.set_xscale("log")
@@ -193,7 +183,7 @@ def _figure_error_vs_time(ctx, out_dir, stem):
     ax1.set_title("(a) misclassified near-contact poses (95 % Wilson intervals; numbers: n)", fontsize=10)
     ax2.set_ylabel("geometric error 1 - cos(π/n) = radial deficit / r (log scale)")
     ax2.set_title("(b) geometric error of the inscribed n-gon (numbers: n)", fontsize=10)
-    _legend_below(fig, (ax1, ax2))
+    legend_below(fig, (ax1, ax2), ncol=2, frameon=False)
     fig.suptitle(
         f"Work-precision: semi-infinite cylinder (r = {s['radius']:g}) as an n-gon prism against a "
         f"hexagonal prism; {s['n_poses']:,} near-contact poses; {cpu_name()} (shared, timings noisy)",
@@ -291,7 +281,7 @@ def _figure_error_vs_n(ctx, out_dir, stem):
     _panel_geometry(ax1, ctx)
     _panel_rates_vs_n(ax2, ctx)
     _log_axes((ax1, ax2), "vertices n of the cylinder's inscribed n-gon (log scale)")
-    _legend_below(fig, (ax1, ax2))
+    legend_below(fig, (ax1, ax2), ncol=2, frameon=False)
     fig.suptitle(
         f"Error against n: semi-infinite cylinder (r = {s['radius']:g}) as an inscribed n-gon prism, "
         f"{s['n_poses']:,} near-contact poses (|gap| / r log-uniform in [{s['gap_range_rel'][0]:g}, "

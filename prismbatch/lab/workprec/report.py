@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from ..report import run_metadata, write_csv, write_json
+from ..report import fmt, run_metadata, write_csv, write_json
 from .plots import plot_work_precision
 from .result import WorkPrecisionResult
 from .run import STAT_KEYS
@@ -34,22 +34,16 @@ def compile_times(result):
     return ", ".join(f"{k} {t:.2f} s" for k, t in result.compile_s.items())
 
 
-def _g(x, fmt=".3g"):
-    if x is None or (isinstance(x, float) and not math.isfinite(x)):
-        return "-"
-    return format(x, fmt)
-
-
 def _text_row(r):
     """One row of the text table ('-' for a method that did not run)."""
     ran = math.isfinite(r["rate"])
     mx = max(r["max_fn_depth"], r["max_fp_gap"]) if ran else math.nan
     return (
-        f"{r['method']:<13}{'exact' if r['n'] is None else r['n']:>7}  {_g(r['t_median_us'], '9.2f')}  "
-        f"{_g(r['rate'], '9.2e')}  [{_g(r['ci_low'], '.2e')}, {_g(r['ci_high'], '.2e')}]  "
-        f"{_g(r['fn'], '11')}  {_g(r['fp'], '10')}  {_g(mx, '15.2e')}  "
-        f"{_g(r['fn_beyond_tol'], 'd') if ran else '-'}/"
-        f"{_g(r['fp_beyond_tol'], 'd') if ran else '-'}"
+        f"{r['method']:<13}{'exact' if r['n'] is None else r['n']:>7}  {fmt(r['t_median_us'], '9.2f')}  "
+        f"{fmt(r['rate'], '9.2e')}  [{fmt(r['ci_low'], '.2e')}, {fmt(r['ci_high'], '.2e')}]  "
+        f"{fmt(r['fn'], '11')}  {fmt(r['fp'], '10')}  {fmt(mx, '15.2e')}  "
+        f"{fmt(r['fn_beyond_tol'], 'd') if ran else '-'}/"
+        f"{fmt(r['fp_beyond_tol'], 'd') if ran else '-'}"
     )
 
 

@@ -19,6 +19,7 @@ from ...shapes import Prism
 from ..checks import check_int, check_positive
 from ..report import package_versions
 from ..report import progress as make_progress_bar
+from ..timing import seconds_of
 from .result import METHODS, WorkPrecisionResult, method_labels
 from .scene import (
     B_SCALE,
@@ -204,17 +205,12 @@ def poses_per_dtype(P):
 
 def measure_compile(probe, shape_b, arrays, items):
     """First-call time (compile or cache load) per dtype and path, excluded from the timings."""
-    perf = time.perf_counter
     compile_s = {}
     for dt, tag in ((np.float64, "float64"), (np.float32, "float32")):
         col = Collider(probe, shape_b, dtype=dt)
         A = arrays[dt]
-        t0 = perf()
-        col.collide(*(x[:2] for x in A), parallel=False)
-        compile_s[f"{tag}_batch"] = perf() - t0
-        t0 = perf()
-        col.collide_pair(*items[dt][0])
-        compile_s[f"{tag}_pair"] = perf() - t0
+        compile_s[f"{tag}_batch"] = seconds_of(lambda: col.collide(*(x[:2] for x in A), parallel=False))
+        compile_s[f"{tag}_pair"] = seconds_of(lambda: col.collide_pair(*items[dt][0]))
     return compile_s
 
 

@@ -10,6 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ...geometry import rotation_with_axis
 from ...sampling import AXIS_DOWN
 from ...shapes import Prism
 from ..checks import check_int, check_positive
@@ -143,16 +144,6 @@ def _unit_rows(x):
     return x / np.linalg.norm(x, axis=1, keepdims=True)
 
 
-def _frames_with_axis(d, spin):
-    """Rotations (N, 3, 3) with third column ``d`` (unit rows) and a spin angle about it."""
-    ref = np.where(np.abs(d[:, :1]) < 0.9, np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]]))
-    x = _unit_rows(ref - np.sum(ref * d, axis=1, keepdims=True) * d)
-    y = np.cross(d, x)
-    c, s = np.cos(spin)[:, None], np.sin(spin)[:, None]
-    x, y = c * x + s * y, -s * x + c * y
-    return np.stack([x, y, d], axis=2)
-
-
 def _check_pose_arguments(n, rng, radius, shape_b, gap_range, beta_range, tilt_range, hit_fraction):
     """Validated ``(n, radius, shape_b, (lo, hi), (b0, b1), (t0, t1))`` of :func:`near_contact_poses`."""
     n = check_int(n, "n", 1)
@@ -235,11 +226,11 @@ def near_contact_poses(
     # b's axis at angle tilt from u (so u . d_b > 0: b's lowest point in u is on its end face)
     tilt = rng.uniform(t0, t1, n)
     psi = rng.uniform(0.0, 2.0 * np.pi, n)
-    e1 = _frames_with_axis(u, np.zeros(n))
+    e1 = rotation_with_axis(u, np.zeros(n), exact_axis=True)
     d_b = np.cos(tilt)[:, None] * u + np.sin(tilt)[:, None] * (
         np.cos(psi)[:, None] * e1[:, :, 0] + np.sin(psi)[:, None] * e1[:, :, 1]
     )
-    rot_b = _frames_with_axis(_unit_rows(d_b), rng.uniform(0.0, 2.0 * np.pi, n))
+    rot_b = rotation_with_axis(_unit_rows(d_b), rng.uniform(0.0, 2.0 * np.pi, n), exact_axis=True)
     xy_b = np.asarray(shape_b.xy)
     heights = np.einsum("nk,nkj->nj", u, rot_b[:, :, :2]) @ xy_b.T  # (N, n_b): u . (R_b [x, y, 0])
     vertex = np.argmin(heights, axis=1)
