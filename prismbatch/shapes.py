@@ -322,6 +322,7 @@ class PrismSet:
             self.centre,
         ):
             arr.flags.writeable = False
+        self._kernel_arrays = {}
 
     def __len__(self):
         return len(self.prisms)
@@ -334,26 +335,47 @@ class PrismSet:
         return f"PrismSet({len(self)} prisms, {int(n.min())}..{int(n.max())} vertices)"
 
     def kernel_arrays(self, dtype=np.float64):
-        """The arrays the kernels read, cast once to ``dtype``, as a :class:`PrismArrays`."""
-        f = lambda a: np.ascontiguousarray(a, dtype=dtype)  # noqa: E731
-        return PrismArrays(
-            f(self.vx),
-            f(self.vy),
-            f(self.edge_angle),
-            self.edge_table,
-            f(self.vertex_angle),
-            f(self.inv_edge_len),
-            self.offsets,
-            f(self.radius),
-            f(self.centre),
+        """The arrays the kernels read, cast once to ``dtype``, as a :class:`PrismArrays` (kept per dtype).
+
+        All floats of the set live in one array and all integers in another
+        (the fields are views into them): ``floats`` holds ``vx, vy,
+        edge_angle, vertex_angle, inv_edge_len`` (``t`` values each, ``t`` the
+        total vertex count), ``radius`` (``m``) and ``centre`` (``2 m``);
+        ``ints`` holds ``m``, ``offsets`` (``m + 1``) and ``edge_table`` (``t``).
+        """
+        dt = np.dtype(dtype)
+        cached = self._kernel_arrays.get(dt)
+        if cached is not None:
+            return cached
+        m, t = len(self.radius), int(self.offsets[-1])
+        floats = np.concatenate(
+            [self.vx, self.vy, self.edge_angle, self.vertex_angle, self.inv_edge_len, self.radius, self.centre.ravel()]
+        ).astype(dt)
+        ints = np.concatenate([[m], self.offsets, self.edge_table]).astype(np.int64)
+        # Left writeable: Numba's dispatcher types read-only arrays on a slow path (~1 µs each per call).
+        out = PrismArrays(
+            floats[0:t],
+            floats[t : 2 * t],
+            floats[2 * t : 3 * t],
+            ints[m + 2 : m + 2 + t],
+            floats[3 * t : 4 * t],
+            floats[4 * t : 5 * t],
+            ints[1 : m + 2],
+            floats[5 * t : 5 * t + m],
+            floats[5 * t + m :].reshape(m, 2),
+            floats,
+            ints,
         )
+        self._kernel_arrays[dt] = out
+        return out
 
 
 class PrismArrays(NamedTuple):
     """A :class:`PrismSet`'s arrays as the kernels take them (one dtype, C-contiguous).
 
     Vertices of prism k are rows ``offsets[k]:offsets[k + 1]`` of the
-    per-vertex arrays, relative to the polygon's centre.
+    per-vertex arrays, relative to the polygon's centre. The nine fields are
+    views into ``floats`` and ``ints``, the two arrays the batch kernels take.
     """
 
     vx: np.ndarray
@@ -365,6 +387,8 @@ class PrismArrays(NamedTuple):
     offsets: np.ndarray
     radius: np.ndarray
     centre: np.ndarray
+    floats: np.ndarray
+    ints: np.ndarray
 
 
 def as_prism_set(shape, name, dtype=np.float64):

@@ -15,7 +15,7 @@ import numpy as np
 from numba import prange
 
 from .checks import first_bad_rotation
-from .jit import jit, twins
+from .jit import first_call, jit, twins
 from .projection import T_P, T_R, T_TOL, pair_test
 
 
@@ -184,24 +184,10 @@ def pair_world(
 
 
 def _collide_loop(
-    avx,
-    avy,
-    aeang,
-    aetab,
-    avang,
-    ainv,
-    aoff,
-    arad,
-    acen,
-    bvx,
-    bvy,
-    beang,
-    betab,
-    bvang,
-    binv,
-    boff,
-    brad,
-    bcen,
+    a_floats,
+    a_ints,
+    b_floats,
+    b_ints,
     pos_a,
     rot_a,
     pos_b,
@@ -214,6 +200,8 @@ def _collide_loop(
     case_out,
     contact_out,
 ):
+    avx, avy, aeang, aetab, avang, ainv, aoff, arad, acen = unpack(a_floats, a_ints)
+    bvx, bvy, beang, betab, _, _, boff, brad, bcen = unpack(b_floats, b_ints)
     n = hit_out.shape[0]
     npa = pos_a.shape[0]
     nra = rot_a.shape[0]
@@ -309,6 +297,30 @@ def use_parallel(parallel, n):
     return bool(parallel)
 
 
+@jit(inline="always")
+def unpack(floats, ints):
+    """The nine arrays of a packed prism set, as views (layout: :meth:`prismbatch.shapes.PrismSet.kernel_arrays`).
+
+    Two arrays cross the dispatcher instead of nine: each array argument costs
+    a one-pair call a few hundred nanoseconds of type checks and unboxing.
+    The layout is built in Python by ``kernel_arrays``; a test keeps the two in step.
+    """
+    m = ints[0]
+    offsets = ints[1 : m + 2]
+    t = offsets[m]
+    return (
+        floats[0:t],
+        floats[t : 2 * t],
+        floats[2 * t : 3 * t],
+        ints[m + 2 : m + 2 + t],
+        floats[3 * t : 4 * t],
+        floats[4 * t : 5 * t],
+        offsets,
+        floats[5 * t : 5 * t + m],
+        floats[5 * t + m : 5 * t + 3 * m].reshape((m, 2)),
+    )
+
+
 def all_fields(s):
     """Every array of a PrismArrays ``s``, in the order the batch kernels take them."""
     return (s.vx, s.vy, s.edge_angle, s.edge_table, s.vertex_angle, s.inv_edge_len, s.offsets, s.radius, s.centre)
@@ -327,9 +339,13 @@ def run(a_arrays, b_arrays, pos_a, rot_a, pos_b, rot_b, n, rtol, atol, want_cont
     # A status-only call gets a (0, 3) placeholder: no memory, no writes.
     contact = np.empty((n if want_contact else 0, 3), dtype=pos_a.dtype)
     kern = collide_parallel if parallel else collide_serial
-    kern(
-        *all_fields(a_arrays),
-        *all_fields(b_arrays),
+    first_call(
+        (kern, pos_a.dtype),
+        kern,
+        a_arrays.floats,
+        a_arrays.ints,
+        b_arrays.floats,
+        b_arrays.ints,
         pos_a,
         rot_a,
         pos_b,
@@ -347,24 +363,10 @@ def run(a_arrays, b_arrays, pos_a, rot_a, pos_b, rot_b, n, rtol, atol, want_cont
 
 @jit
 def collide_pair(
-    avx,
-    avy,
-    aeang,
-    aetab,
-    avang,
-    ainv,
-    aoff,
-    arad,
-    acen,
-    bvx,
-    bvy,
-    beang,
-    betab,
-    bvang,
-    binv,
-    boff,
-    brad,
-    bcen,
+    a_floats,
+    a_ints,
+    b_floats,
+    b_ints,
     Pa,
     Ra,
     Pb,
@@ -391,6 +393,8 @@ def collide_pair(
         _, kind, val = first_bad_rotation(R.reshape((1, 3, 3)), ortho_tol)
         if kind != 0:
             return 1 + kind + 4 * k, val, False, 0, nan, nan, nan
+    avx, avy, aeang, aetab, avang, ainv, aoff, arad, acen = unpack(a_floats, a_ints)
+    bvx, bvy, beang, betab, _, _, boff, brad, bcen = unpack(b_floats, b_ints)
     hit, case, cx, cy, cz = pair_world(
         avx,
         avy,

@@ -8,11 +8,12 @@ pairs is written once and compiled as serial and parallel twins
 """
 
 import sys
+import threading
 import types
 
 from numba import njit
 
-__all__ = ["jit", "twins", "cache_enabled"]
+__all__ = ["jit", "twins", "cache_enabled", "first_call"]
 
 _cache = {"ok": None}  # None: not tried yet
 
@@ -75,3 +76,40 @@ def _renamed(func, name):
     g.__qualname__ = name
     g.__doc__ = func.__doc__
     return g
+
+
+#: Seconds a first call may take before a notice says that it is compiling.
+COMPILE_NOTICE_AFTER_S = 1.0
+_called = set()  # keys of the calls made once in this process
+
+
+def _compile_notice():
+    if "noticed" in _called:
+        return
+    _called.add("noticed")  # once per process: the kernels of one run compile one after another
+    print(
+        "prismbatch: compiling the collision kernels for this process's first call (up to some 10 s once; "
+        "later runs load them from Numba's cache)",
+        file=sys.stderr,
+        flush=True,
+    )
+
+
+def first_call(key, kernel, *args):
+    """``kernel(*args)``; the first time ``key`` is called in this process, a one-line notice goes
+    to stderr if the call (compilation or cache load) takes more than :data:`COMPILE_NOTICE_AFTER_S`
+    (at most one notice per process).
+
+    A cold compile takes seconds and would otherwise look like a hang; a load from the
+    cache is faster than the notice's delay and stays silent.
+    """
+    if key in _called:
+        return kernel(*args)
+    timer = threading.Timer(COMPILE_NOTICE_AFTER_S, _compile_notice)
+    timer.daemon = True
+    timer.start()
+    try:
+        return kernel(*args)
+    finally:
+        timer.cancel()
+        _called.add(key)

@@ -60,3 +60,56 @@ def test_unwritable_numba_cache_falls_back_to_no_cache():
     assert out.stdout.strip() == "[False, True]"
     lines = [ln for ln in out.stderr.splitlines() if ln.startswith("prismbatch: Numba cannot write its cache")]
     assert len(lines) == 1, out.stderr
+
+
+def test_a_slow_first_call_prints_one_compile_notice(capsys, monkeypatch):
+    import time
+
+    from prismbatch._kernels import jit
+
+    monkeypatch.setattr(jit, "COMPILE_NOTICE_AFTER_S", 0.05)
+    monkeypatch.setattr(jit, "_called", set())
+    slow, fast = object(), object()
+    assert jit.first_call(slow, lambda x: (time.sleep(0.3), x)[1], 7) == 7
+    assert jit.first_call(fast, lambda: 1) == 1
+    assert jit.first_call(slow, lambda: 2) == 2  # a second call: no timer, no notice
+    assert jit.first_call(object(), lambda: time.sleep(0.3)) is None  # another slow first call: no second notice
+    err = capsys.readouterr().err
+    assert err.count("prismbatch: compiling the collision kernels") == 1
+
+
+def test_collide_reuses_its_collider_only_for_the_same_shapes_and_tolerances():
+    import numpy as np
+
+    import prismbatch as pb
+
+    collide_module = sys.modules["prismbatch.collide"]  # the module; pb.collide is the function
+
+    a, b = pb.Prism.regular(5, 2.0), pb.Prism.regular(6, 2.5)
+    down = np.diag([1.0, -1.0, -1.0])
+    p = np.array([0.0, 0.0, 1e-6])
+    for _ in range(2):
+        tight = pb.collide(a, b, np.zeros(3), down, p, np.eye(3), rtol=1e-9)
+        loose = pb.collide(a, b, np.zeros(3), down, p, np.eye(3), rtol=1e-6)
+    assert tight.hit.tolist() == [False] and loose.hit.tolist() == [True]
+    assert collide_module._collider(a, b, 1e-6, 0.0, np.float64) is collide_module._collider(a, b, 1e-6, 0.0, "f8")
+    assert collide_module._collider(a, b, 1e-6, 0.0, np.float64) is not collide_module._collider(b, a, 1e-6, 0.0, "f8")
+    with pytest.raises(TypeError):
+        pb.collide(a, b, np.zeros(3), down, p, np.eye(3), rtol=True)
+
+
+def test_the_kernels_unpack_the_same_fields_the_prism_set_packs():
+    # The packed layout is written twice, once in Python (PrismSet.kernel_arrays) and once in the
+    # compiled unpack; this keeps the two in step.
+    import numpy as np
+
+    import prismbatch as pb
+    from prismbatch._kernels.batch import unpack
+
+    s = pb.PrismSet([pb.Prism.regular(5, 1.0), [[0, 0], [3, 0], [0, 2.0]], pb.Prism.regular(40, 1e-3)])
+    for dt in (np.float64, np.float32):
+        k = s.kernel_arrays(dt)
+        for field, got in zip(k._fields, unpack.py_func(k.floats, k.ints)):
+            assert np.array_equal(got, getattr(k, field)) and got.dtype == getattr(k, field).dtype, field
+        assert np.array_equal(k.vx, s.vx.astype(dt)) and np.array_equal(k.centre, s.centre.astype(dt))
+        assert np.array_equal(k.edge_table, s.edge_table) and np.array_equal(k.offsets, s.offsets)

@@ -1,0 +1,253 @@
+#!/usr/bin/env python
+"""prismbatch against the floor: how far each path is from what any exact method must do per pair.
+
+The floor is a compiled loop that reads both poses, forms b's height above a's
+end plane and the cosine between the axes, and makes one comparison: every
+exact method has to do at least that. Each row times prismbatch on one thread
+(``Collider.collide(..., parallel=False)``) over a set of pose pairs of one kind
+and divides by the floor measured on the same pairs in the same run:
+
+* early exits: the paper's facing poses that prismbatch settles as case 1 or 5;
+* GJK pairs: facing poses that reach the planar GJK (case 6);
+* the facing mix, and fully random (free) poses;
+
+at 36, 3600 and 100,000 vertices. Then the latency of one query
+(``collide_pair``, ``Collider.collide`` and ``pb.collide`` on one plain pair,
+against a trivial ``@njit`` call taking the same four arrays), two threads
+against one on 10^6 pairs, status only against contacts, float32 against
+float64, the cold compile of the default path in a fresh process with an empty
+Numba cache, and the build of a ``PrismSet`` of 100,000 polygons.
+
+Medians over repeats, all in one run; print a Markdown table and, with
+``--out``, write it with a JSON of every figure and the machine.
+
+    python benchmarks/bench_floor.py [--quick] [--out DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numba
+import numpy as np
+
+import prismbatch as pb
+from prismbatch.lab.report import fmt, run_metadata, write_json
+from prismbatch.lab.timing import stats, threads, timed_loops
+from prismbatch.sampling import facing_poses, free_poses
+
+RADIUS_A, RADIUS_B = 2.0, 2.5
+
+
+@numba.njit(cache=True)
+def _floor_loop(pos_a, rot_a, pos_b, rot_b, out):
+    """Read both poses, b's height along a's axis and the axes' cosine, one compare per pair."""
+    for i in range(pos_a.shape[0]):
+        h = 0.0
+        c = 0.0
+        for k in range(3):
+            h += rot_a[i, k, 2] * (pos_b[i, k] - pos_a[i, k])
+            c += rot_a[i, k, 2] * rot_b[i, k, 2]
+        out[i] = h + c > 0.0
+    return out
+
+
+@numba.njit(cache=True)
+def _trivial(pos_a, rot_a, pos_b, rot_b):
+    return pos_a[0] + rot_a[0, 0] + pos_b[0] + rot_b[0, 0]
+
+
+def _subset(poses, mask):
+    return tuple(np.ascontiguousarray(x[mask]) for x in poses)
+
+
+def _per_pair_ns(fn, n, repeats):
+    return 1e9 * stats(timed_loops({"f": fn}, repeats)["f"])["median"] / n
+
+
+def kernel_rows(n_vertices, n_pairs, repeats, rng):
+    """Per-pair ns of each pose kind at one polygon size, and the floor on the same pairs."""
+    a, b = pb.Prism.regular(n_vertices, RADIUS_A), pb.Prism.regular(n_vertices, RADIUS_B)
+    col = pb.Collider(a, b)
+    facing = tuple(np.ascontiguousarray(x) for x in facing_poses(n_pairs, rng, radius=RADIUS_B))
+    free = tuple(np.ascontiguousarray(x) for x in free_poses(n_pairs, rng, radius=RADIUS_B))
+    case = col.collide(*facing, parallel=False).case
+    sets = {
+        "early exits (cases 1, 5)": _subset(facing, (case == 1) | (case == 5)),
+        "GJK pairs (case 6)": _subset(facing, case == 6),
+        "facing mix": facing,
+        "free poses": free,
+    }
+    rows = []
+    for name, poses in sets.items():
+        n = len(poses[0])
+        out = np.empty(n, dtype=np.bool_)
+        t_floor = _per_pair_ns(lambda p=poses, o=out: _floor_loop(*p, o), n, repeats)
+        t_pb = _per_pair_ns(lambda p=poses: col.collide(*p, parallel=False), n, repeats)
+        rows.append({"vertices": n_vertices, "set": name, "pairs": n, "floor_ns": t_floor, "prismbatch_ns": t_pb})
+    return rows
+
+
+def latency_rows(repeats):
+    """One query: µs per call of each entry point on one plain pair, and a trivial njit call."""
+    a, b = pb.Prism.regular(36, RADIUS_A), pb.Prism.regular(36, RADIUS_B)
+    col = pb.Collider(a, b)
+    one = tuple(np.ascontiguousarray(x[0]) for x in facing_poses(1, np.random.default_rng(1), radius=RADIUS_B))
+    calls = {
+        "trivial @njit call, same 4 arrays": lambda: _trivial(*one),
+        "Collider.collide_pair": lambda: col.collide_pair(*one),
+        "Collider.collide, one pair": lambda: col.collide(*one),
+        "pb.collide, one pair": lambda: pb.collide(a, b, *one),
+    }
+    loops = 2000
+
+    def many(f):
+        def run():
+            for _ in range(loops):
+                f()
+
+        return run
+
+    times = timed_loops({k: many(f) for k, f in calls.items()}, repeats)
+    return {k: 1e6 * stats(v)["median"] / loops for k, v in times.items()}
+
+
+def bulk_rows(n_pairs, repeats, rng):
+    """10^6-pair figures: threads, status against contacts, float32 against float64 (ms per call)."""
+    a, b = pb.Prism.regular(36, RADIUS_A), pb.Prism.regular(36, RADIUS_B)
+    poses = tuple(np.ascontiguousarray(x) for x in facing_poses(n_pairs, rng, radius=RADIUS_B))
+    poses32 = tuple(x.astype(np.float32) for x in poses)
+    c64, c32 = pb.Collider(a, b), pb.Collider(a, b, dtype=np.float32)
+    out = {}
+    with threads(1):
+        t = timed_loops(
+            {
+                "status, float64, 1 thread": lambda: c64.collide(*poses, parallel=False),
+                "contacts, float64, 1 thread": lambda: c64.collide(*poses, parallel=False, contact=True),
+                "status, float32, 1 thread": lambda: c32.collide(*poses32, parallel=False),
+            },
+            repeats,
+        )
+    out.update({k: 1e3 * stats(v)["median"] for k, v in t.items()})
+    k = min(2, numba.config.NUMBA_NUM_THREADS)
+    with threads(k):
+        t = timed_loops({f"status, float64, {k} threads": lambda: c64.collide(*poses, parallel=True)}, repeats)
+    out.update({kk: 1e3 * stats(v)["median"] for kk, v in t.items()})
+    return out
+
+
+_COLD = """
+import time, numpy as np
+t0 = time.perf_counter()
+import prismbatch as pb
+t1 = time.perf_counter()
+col = pb.Collider(pb.Prism.regular(6, 2.0), pb.Prism.regular(6, 2.5))
+p = np.zeros((2, 3)); r = np.broadcast_to(np.eye(3), (2, 3, 3)).copy()
+col.collide(p, r, p + 1, r)
+t2 = time.perf_counter()
+col.collide(p, r, p + 1, r)
+t3 = time.perf_counter()
+print(t1 - t0, t2 - t1, t3 - t2)
+"""
+
+
+def cold_compile():
+    """Import and first ``collide`` call in a fresh process with an empty Numba cache, then with it warm (s)."""
+    res = {}
+    with tempfile.TemporaryDirectory(prefix="pb_cold_") as d:
+        env = dict(os.environ, NUMBA_CACHE_DIR=d)
+        for label in ("cold", "cached"):
+            r = subprocess.run([sys.executable, "-c", _COLD], env=env, capture_output=True, text=True, check=True)
+            imp, first, second = (float(x) for x in r.stdout.split())
+            res[label] = {"import_s": imp, "first_call_s": first, "second_call_s": second}
+    return res
+
+
+def prismset_build(n_polygons, rng):
+    """Seconds to build a PrismSet of ``n_polygons`` random 3-12-gons, and to query them once."""
+    polys = []
+    for _ in range(n_polygons):
+        k = int(rng.integers(3, 13))
+        ang = np.sort(rng.uniform(0, 2 * np.pi, k))
+        polys.append(np.column_stack([np.cos(ang), np.sin(ang)]) * rng.uniform(0.5, 2.0))
+    t0 = time.perf_counter()
+    s = pb.PrismSet(polys)
+    build = time.perf_counter() - t0
+    poses = facing_poses(n_polygons, rng, radius=RADIUS_B)
+    col = pb.Collider(s, pb.Prism.regular(6, RADIUS_B))
+    col.collide(*poses)  # first call: compile or cache load
+    t0 = time.perf_counter()
+    col.collide(*poses)
+    return {"polygons": n_polygons, "build_s": build, "query_s": time.perf_counter() - t0}
+
+
+def markdown(res):
+    L = ["| vertices | pose set | pairs | floor (ns/pair) | prismbatch 1 thread (ns/pair) | ratio |", "|---" * 6 + "|"]
+    for r in res["kernel"]:
+        L.append(
+            f"| {r['vertices']} | {r['set']} | {r['pairs']} | {fmt(r['floor_ns'])} | {fmt(r['prismbatch_ns'])} | "
+            f"{fmt(r['prismbatch_ns'] / r['floor_ns'], '.1f')}x |"
+        )
+    lat = res["latency_us"]
+    base = lat["Collider.collide_pair"]
+    L += ["", "| one query | µs per call | ratio |", "|---|---|---|"]
+    triv = lat["trivial @njit call, same 4 arrays"]
+    for k, v in lat.items():
+        ref = f"{fmt(v / triv, '.1f')}x trivial" if k == "Collider.collide_pair" else f"{fmt(v / base, '.1f')}x pair"
+        L.append(f"| {k} | {fmt(v)} | {'-' if k.startswith('trivial') else ref} |")
+    bulk = res["bulk_ms"]
+    L += ["", f"| {res['bulk_pairs']} facing pairs, 36 vertices | ms per call |", "|---|---|"]
+    L += [f"| {k} | {fmt(v)} |" for k, v in bulk.items()]
+    cc = res["compile"]
+    L += [
+        "",
+        f"First use (fresh process, empty Numba cache): import {fmt(cc['cold']['import_s'], '.2f')} s, "
+        f"first collide {fmt(cc['cold']['first_call_s'], '.2f')} s; with the cache warm "
+        f"{fmt(cc['cached']['first_call_s'], '.3f')} s.",
+        f"PrismSet of {res['prismset']['polygons']} polygons: built in {fmt(res['prismset']['build_s'], '.2f')} s, "
+        f"queried in {fmt(res['prismset']['query_s'], '.3f')} s.",
+    ]
+    return "\n".join(L)
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--quick", action="store_true", help="small sets and few repeats (a smoke run)")
+    ap.add_argument("--repeats", type=int, default=None, help="timed passes per figure (default 7, quick 3)")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--out", type=Path, default=None, help="write floor.md and floor.json here")
+    args = ap.parse_args(argv)
+    rep = args.repeats or (3 if args.quick else 7)
+    rng = np.random.default_rng(args.seed)
+    sizes = (36, 3600) if args.quick else (36, 3600, 100_000)
+    n_pairs = 20_000 if args.quick else 200_000
+    res = {"kernel": []}
+    for n in sizes:
+        print(f"kernel rows at {n} vertices ...", file=sys.stderr)
+        with threads(1):
+            res["kernel"] += kernel_rows(n, n_pairs, rep, rng)
+    print("latency ...", file=sys.stderr)
+    res["latency_us"] = latency_rows(rep)
+    res["bulk_pairs"] = 100_000 if args.quick else 1_000_000
+    print("bulk ...", file=sys.stderr)
+    res["bulk_ms"] = bulk_rows(res["bulk_pairs"], rep, rng)
+    print("cold compile ...", file=sys.stderr)
+    res["compile"] = cold_compile()
+    res["prismset"] = prismset_build(10_000 if args.quick else 100_000, rng)
+    text = markdown(res)
+    print(text)
+    if args.out:
+        args.out.mkdir(parents=True, exist_ok=True)
+        (args.out / "floor.md").write_text(text + "\n")
+        write_json(args.out / "floor.json", dict(res, meta=run_metadata(repeats=rep, seed=args.seed)))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
