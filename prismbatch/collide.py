@@ -131,6 +131,9 @@ class Collider:
         self._b = set_b.kernel_arrays(dt)
         self._shape_args = (self._a.floats, self._a.ints, self._b.floats, self._b.ints)  # one-pair calls
         self._eps = float(np.finfo(dt).eps)
+        self._pair_kernel = _batch.collide_pair[dt]
+        ortho = ortho_tolerance(dt, dt)
+        self._pair_scalars = (self.rtol, self.atol, self._eps, ortho, ortho, self._max_magnitude)
         # Orthonormality tolerance by the input's dtype (the one rule of as_pose).
         self._ortho_tols = {t: ortho_tolerance(t, dt) for t in (np.dtype(np.float64), np.dtype(np.float32))}
         self._n_shapes = None
@@ -198,6 +201,22 @@ class Collider:
         """
         if self._a_per or self._b_per:
             raise TypeError("collide_pair needs single Prism shapes, not PrismSets")
+        if _pair_closed[self.dtype]:
+            # The common case, kept short (a one-pair call takes about a microsecond): the kernel,
+            # closed to other signatures, takes the arrays only if they are ready as they are.
+            try:
+                out = self._pair_kernel(*self._shape_args, pos_a, rot_a, pos_b, rot_b, *self._pair_scalars)
+            except TypeError:  # another dtype or layout, a read-only array, not an array
+                out = None
+            if out is not None and out[0] != _batch.PAIR_SHAPE_PROBLEM:
+                problem, val, hit, case, cx, cy, cz = out
+                if problem:
+                    raise ValueError(_pair_problem(problem, val, self._pair_scalars[3], self._max_magnitude))
+                return PairResult(hit, case, np.array((cx, cy, cz)))
+        return self._converted_pair(pos_a, rot_a, pos_b, rot_b)
+
+    def _converted_pair(self, pos_a, rot_a, pos_b, rot_b):
+        """:meth:`collide_pair` with its arguments checked and converted (and the first call)."""
         f = self._pair_array
         Pa, Ra, Pb, Rb = (
             f(pos_a, (3,), "pos_a"),
@@ -206,24 +225,17 @@ class Collider:
             f(rot_b, (3, 3), "rot_b"),
         )
         ta, tb = self._ortho_tol(rot_a), self._ortho_tol(rot_b)
-        problem, val, hit, case, cx, cy, cz = first_call(
-            (_batch.collide_pair, self.dtype),
-            _batch.collide_pair,
-            *self._shape_args,
-            Pa,
-            Ra,
-            Pb,
-            Rb,
-            self.rtol,
-            self.atol,
-            self._eps,
-            ta,
-            tb,
-            self._max_magnitude,
-        )
+        args = (*self._shape_args, Pa, Ra, Pb, Rb, self.rtol, self.atol, self._eps, ta, tb, self._max_magnitude)
+        if _pair_closed[self.dtype]:
+            out = self._pair_kernel(*args)
+        else:
+            out = first_call(self._pair_kernel, self._pair_kernel, *args)
+            self._pair_kernel.disable_compile()
+            _pair_closed[self.dtype] = True
+        problem, val, hit, case, cx, cy, cz = out
         if problem:
             raise ValueError(_pair_problem(problem, val, ta if problem <= 4 else tb, self._max_magnitude))
-        return PairResult(bool(hit), int(case), np.array([cx, cy, cz]))
+        return PairResult(hit, case, np.array((cx, cy, cz)))
 
     def explain(self, pos_a, rot_a, pos_b, rot_b):
         """Step-by-step record of how one pose pair is decided (for ``prismbatch replay``).
@@ -281,11 +293,6 @@ class Collider:
         return tol
 
     def _pair_array(self, x, shape, name):
-        # The common case first, in as few attribute reads as possible (a one-pair call is ~1 µs).
-        if type(x) is np.ndarray and x.dtype is self.dtype and x.shape == shape:
-            flags = x.flags
-            if flags.c_contiguous and flags.writeable:
-                return x
         a = np.asarray(x)
         if a.dtype != self.dtype or a.shape != shape or not (a.flags.c_contiguous and a.flags.writeable):
             if a.dtype.kind not in "iuf":
@@ -297,6 +304,10 @@ class Collider:
                 )
             a = _kernel_array(a, shape, self.dtype)
         return a
+
+
+#: Whether the one-pair kernel of a dtype has compiled its one signature and been closed to others.
+_pair_closed = {np.dtype(np.float64): False, np.dtype(np.float32): False}
 
 
 def _kernel_array(x, shape, dtype):

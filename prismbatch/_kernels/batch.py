@@ -15,15 +15,15 @@ import numpy as np
 from numba import prange
 
 from .checks import first_bad_rotation
-from .jit import first_call, jit, twins
-from .projection import T_P, T_R, T_TOL, pair_test
+from .jit import first_call, jit, per_dtype, twins
+from .projection import CASE_ABOVE, T_P, T_R, T_TOL, pair_test, surely_above, top_vertex
 
 
 # error_model="numpy": with Python's ZeroDivisionError check on 1 / det the
 # facing-pose benchmark measured ~20% slower per pair; det ~ 1 here.
 # Kept as one long function: the per-pair hot path (not split into calls, which would add call and
 # tuple overhead per pair; a measured split is future work).
-@jit(error_model="numpy")
+@jit(error_model="numpy", inline="always")
 def pair_world(
     avx,
     avy,
@@ -140,6 +140,11 @@ def pair_world(
             trace[T_P + j] = v
         for j, v in enumerate((r00, r01, r02, r10, r11, r12, r20, r21, r22)):
             trace[T_R + j] = v
+    imax = top_vertex(bvx, bvy, beang, betab, sb, nb, r20, r21)
+    if trace is None and surely_above(bvx, bvy, sb, imax, pz, r20, r21, r22, tol):
+        # Most pairs of a scene leave here, without the call into pair_test (its arguments
+        # cost more than this test); pair_test takes the same exit when tracing.
+        return False, CASE_ABOVE, math.nan, math.nan, math.nan
     hit, case, cx, cy, cz = pair_test(
         avx,
         avy,
@@ -170,6 +175,7 @@ def pair_world(
         r21,
         r22,
         tol,
+        imax,
         trace,
     )
     if not hit:
@@ -249,7 +255,7 @@ def _collide_loop(
             contact_out[i, 2] = cz
 
 
-collide_serial, collide_parallel = twins(_collide_loop, "collide")
+collide_serial, collide_parallel = twins(_collide_loop, "collide", error_model="numpy", refcounts=False)
 
 
 #: Batches smaller than this run on the serial kernel when ``parallel`` is
@@ -361,8 +367,11 @@ def run(a_arrays, b_arrays, pos_a, rot_a, pos_b, rot_b, n, rtol, atol, want_cont
     return hit, case, contact
 
 
-@jit
-def collide_pair(
+#: Problem code of :data:`collide_pair` for a pose array of the wrong length (the caller converts and says which).
+PAIR_SHAPE_PROBLEM = 9
+
+
+def _collide_pair(
     a_floats,
     a_ints,
     b_floats,
@@ -385,6 +394,9 @@ def collide_pair(
     collide._pair_problem) and ``value`` gives the offending number.
     """
     nan = math.nan
+    # Shapes are checked here, not by the caller: a (2,) position would be read out of bounds.
+    if Pa.shape[0] != 3 or Pb.shape[0] != 3 or Ra.shape != (3, 3) or Rb.shape != (3, 3):
+        return PAIR_SHAPE_PROBLEM, 0.0, False, 0, nan, nan, nan
     for k, P in enumerate((Pa, Pb)):
         for j in range(3):
             if not abs(P[j]) <= max_magnitude:  # also NaN
@@ -424,3 +436,10 @@ def collide_pair(
         None,
     )
     return 0, 0.0, hit, case, cx, cy, cz
+
+
+#: The one-pair kernel, one compiled copy per dtype. Each is closed to new signatures once
+#: its own has compiled (``disable_compile``), so that a call with anything else (another
+#: dtype or layout, a read-only array, a list) raises TypeError instead of compiling a
+#: specialisation: ``Collider.collide_pair`` then converts the arguments and calls again.
+collide_pair = per_dtype(_collide_pair, "collide_pair", (np.float64, np.float32), error_model="numpy", refcounts=False)

@@ -144,6 +144,19 @@ def _near_top_count(bvx, bvy, sb, nb, hx, hy, imax, zmax_h, tol):
     return min(cnt, 3)
 
 
+@jit(inline="always")
+def top_vertex(bvx, bvy, beang, betab, sb, nb, r20, r21):
+    """Index of b's end-face vertex deepest into a's body (the paper's Δ3 vertex): max of (r20, r21) . v."""
+    return extreme_vertex(bvx, bvy, beang, betab, sb, nb, r20, r21)
+
+
+@jit(inline="always")
+def surely_above(bvx, bvy, sb, imax, pz, r20, r21, r22, tol):
+    """The common case-1 exit (b wholly above a's end plane, its axis not pointing down), as
+    :func:`pair_test` takes it first: cheap enough for the caller to inline ahead of the full test."""
+    return pz + (r20 * bvx[sb + imax] + r21 * bvy[sb + imax]) < -tol and r22 <= 0.0
+
+
 # Kept as one long function: the per-pair hot path (not split into calls, which would add call and
 # tuple overhead per pair; a measured split is future work).
 @jit
@@ -177,6 +190,7 @@ def pair_test(
     r21,
     r22,
     tol,
+    imax,
     trace,
 ):
     """Collision test for one pair in a's centred frame.
@@ -184,7 +198,8 @@ def pair_test(
     Returns (hit, case, cx, cy, cz): the case number and, on a hit, a contact
     point (a's centred frame) lying within tol of both bodies. ``trace`` is
     None (no tracing) or a float array of TRACE_SIZE that receives the
-    intermediate quantities (fields TRACE_FIELDS, exit codes EXITS). With
+    intermediate quantities (fields TRACE_FIELDS, exit codes EXITS). ``imax``
+    is :func:`top_vertex` (the caller needs it first for its own early exit). With
     None, Numba compiles a specialisation with every trace branch removed,
     so the batch kernels pay nothing for it (an array argument would cost
     reference counting on every call).
@@ -193,7 +208,6 @@ def pair_test(
     hx = r20
     hy = r21
     c = r22
-    imax = extreme_vertex(bvx, bvy, beang, betab, sb, nb, hx, hy)
     top_u = bvx[sb + imax]
     top_v = bvy[sb + imax]
     top_h = hx * top_u + hy * top_v

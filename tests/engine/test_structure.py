@@ -113,3 +113,25 @@ def test_the_kernels_unpack_the_same_fields_the_prism_set_packs():
             assert np.array_equal(got, getattr(k, field)) and got.dtype == getattr(k, field).dtype, field
         assert np.array_equal(k.vx, s.vx.astype(dt)) and np.array_equal(k.centre, s.centre.astype(dt))
         assert np.array_equal(k.edge_table, s.edge_table) and np.array_equal(k.offsets, s.offsets)
+
+
+def test_kernels_without_refcounts_keep_no_reference_to_their_arguments():
+    # The per-pair kernels run without Numba's reference counting (jit(refcounts=False)):
+    # arguments must come back with the reference counts they went in with, on every path.
+    import numpy as np
+
+    import prismbatch as pb
+    from prismbatch.sampling import facing_poses
+
+    col = pb.Collider(pb.Prism.regular(12, 2.0), pb.Prism.regular(7, 2.5))
+    poses = [np.ascontiguousarray(x) for x in facing_poses(200, np.random.default_rng(0))]
+    one = [x[0].copy() for x in poses]
+    col.collide(*poses, parallel=False)
+    col.collide(*poses, parallel=True)
+    col.collide_pair(*one)
+    before = [sys.getrefcount(x) for x in (*poses, *one, col._a.floats, col._b.ints)]
+    for _ in range(50):
+        col.collide(*poses, parallel=False, contact=True)
+        col.collide(*poses, parallel=True)
+        col.collide_pair(*one)
+    assert [sys.getrefcount(x) for x in (*poses, *one, col._a.floats, col._b.ints)] == before

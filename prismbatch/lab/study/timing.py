@@ -26,10 +26,12 @@ def compile_times():
     ra = np.broadcast_to(np.diag([1.0, -1.0, -1.0]), (4, 3, 3)).copy()
     pb_ = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, -1.0], [5.0, 0.0, 0.0], [1.0, 1.0, -0.5]])
     rb = np.broadcast_to(np.eye(3), (4, 3, 3)).copy()
-    loaded = {
-        name: bool(getattr(getattr(kernels, name, None), "signatures", None))
-        for name in ("collide_pair", "collide_serial", "collide_parallel")
+    dispatchers = {
+        "collide_pair": kernels.collide_pair[np.dtype(np.float64)],
+        "collide_serial": kernels.collide_serial,
+        "collide_parallel": kernels.collide_parallel,
     }
+    loaded = {name: bool(d.signatures) for name, d in dispatchers.items()}
     out = {
         "collide_pair_s": seconds_of(lambda: col.collide_pair(pa[0], ra[0], pb_[0], rb[0])),
         "collide_serial_s": seconds_of(lambda: col.collide(pa, ra, pb_, rb, parallel=False)),
