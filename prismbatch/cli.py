@@ -477,7 +477,7 @@ def _workprec_parser(sub):
         description="Work-precision study: a semi-infinite cylinder approximated by an inscribed n-gon "
         "prism against a hexagonal prism, on near-contact poses with exact labels. For "
         "prismbatch float64/float32 (batch call and single query), python-fcl on the n-gon "
-        "and python-fcl's Cylinder: misclassification rate (95 %% Wilson intervals, noise "
+        "and python-fcl's Cylinder: misclassification rate (95 % Wilson intervals, noise "
         "floor) and the geometric error r(1 - cos(pi/n)) against time per query.",
     )
     p.add_argument("--quick", action="store_true", help="n = 8 ... 10000 (6 values), 10,000 poses, 2 repeats")

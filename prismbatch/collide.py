@@ -19,6 +19,7 @@ from .poses import (
     position_message,
     real_scalar,
     rotation_message,
+    transforms_as_written,
 )
 from .shapes import as_prism_set
 
@@ -94,6 +95,33 @@ class CollisionResult:
     def __len__(self):
         return self.hit.shape[0]
 
+    def __getitem__(self, k):
+        """The result of some pairs: an index, a slice, an index array or a boolean mask
+        (an integer keeps a batch of one, like ``result[k:k + 1]``)."""
+        if isinstance(k, (int, np.integer)):
+            n = len(self)
+            if not -n <= k < n:
+                raise IndexError(f"pair {k} is out of range for {n} pairs")
+            k = slice(k, k + 1 if k != -1 else None)
+        return CollisionResult(self.hit[k], self.case[k], None if self._contact is None else self._contact[k])
+
+    def __repr__(self):
+        n = len(self)
+        extra = ", with contacts" if self._contact is not None else ""
+        hits = int(np.count_nonzero(self.hit))
+        return (
+            f"CollisionResult({n} pair{'s' * (n != 1)}, {hits} hit{'s' * (hits != 1)}{extra}; "
+            f"cases {self.case_counts()})"
+        )
+
+    def columns(self) -> dict:
+        """The result as named 1-D columns (``pandas.DataFrame(result.columns())`` takes them):
+        ``hit``, ``case`` and, when computed, ``contact_x``, ``contact_y``, ``contact_z``."""
+        out = {"hit": self.hit, "case": self.case}
+        if self._contact is not None:
+            out.update(contact_x=self._contact[:, 0], contact_y=self._contact[:, 1], contact_z=self._contact[:, 2])
+        return out
+
     def case_counts(self) -> dict:
         """Number of pairs per case number (cases that occur only)."""
         vals, cnt = np.unique(self.case, return_counts=True)
@@ -147,6 +175,7 @@ class Collider:
 
     def collide(self, pos_a, rot_a=None, pos_b=None, rot_b=None, *, contact=False, quat_order=None, parallel=None):
         """Test the pose pairs; see :func:`collide` for the arguments."""
+        pos_a, rot_a, pos_b, rot_b = transforms_as_written(pos_a, rot_a, pos_b, rot_b)
         if pos_b is None:
             raise TypeError("collide needs a pose for b: pos_b (and rot_b, or a 4x4 transform as pos_b)")
         check_flag(contact, "contact")
@@ -181,13 +210,16 @@ class Collider:
         )
         return CollisionResult(hit, case, cont if contact else None)
 
-    def collide_pair(self, pos_a, rot_a, pos_b, rot_b):
+    def collide_pair(self, pos_a, rot_a=None, pos_b=None, rot_b=None, *, quat_order=None):
         """One pose pair at the lowest latency: one compiled call, checks included.
 
         For loops that query one pair at a time (a controller, a single-query
-        timing study). Poses must be a (3,) position and a (3, 3) rotation
-        matrix each; both shapes must be single prisms. The contact point
-        costs a few flops here and is always returned (NaN when no hit).
+        timing study); both shapes must be single prisms. Each pose is a (3,)
+        position with a rotation in any form :func:`collide` takes, or a 4x4
+        transform (``collide_pair(T_a, T_b)``); the fastest form is a
+        C-contiguous (3,) position and (3, 3) matrix of the Collider's dtype.
+        The contact point costs a few flops here and is always returned (NaN
+        when no hit).
 
         Returns
         -------
@@ -201,7 +233,7 @@ class Collider:
         """
         if self._a_per or self._b_per:
             raise TypeError("collide_pair needs single Prism shapes, not PrismSets")
-        if _pair_closed[self.dtype]:
+        if _pair_closed[self.dtype] and quat_order is None:
             # The common case, kept short (a one-pair call takes about a microsecond): the kernel,
             # closed to other signatures, takes the arrays only if they are ready as they are.
             try:
@@ -213,18 +245,15 @@ class Collider:
                 if problem:
                     raise ValueError(_pair_problem(problem, val, self._pair_scalars[3], self._max_magnitude))
                 return PairResult(hit, case, np.array((cx, cy, cz)))
-        return self._converted_pair(pos_a, rot_a, pos_b, rot_b)
+        return self._converted_pair(pos_a, rot_a, pos_b, rot_b, quat_order)
 
-    def _converted_pair(self, pos_a, rot_a, pos_b, rot_b):
+    def _converted_pair(self, pos_a, rot_a, pos_b, rot_b, quat_order):
         """:meth:`collide_pair` with its arguments checked and converted (and the first call)."""
-        f = self._pair_array
-        Pa, Ra, Pb, Rb = (
-            f(pos_a, (3,), "pos_a"),
-            f(rot_a, (3, 3), "rot_a"),
-            f(pos_b, (3,), "pos_b"),
-            f(rot_b, (3, 3), "rot_b"),
-        )
-        ta, tb = self._ortho_tol(rot_a), self._ortho_tol(rot_b)
+        pos_a, rot_a, pos_b, rot_b = transforms_as_written(pos_a, rot_a, pos_b, rot_b)
+        if pos_b is None:
+            raise TypeError("collide_pair needs a pose for b: pos_b and rot_b, or two 4x4 transforms")
+        Pa, Ra, ta = self._one_pose(pos_a, rot_a, quat_order, "a")
+        Pb, Rb, tb = self._one_pose(pos_b, rot_b, quat_order, "b")
         args = (*self._shape_args, Pa, Ra, Pb, Rb, self.rtol, self.atol, self._eps, ta, tb, self._max_magnitude)
         if _pair_closed[self.dtype]:
             out = self._pair_kernel(*args)
@@ -273,6 +302,19 @@ class Collider:
         out["exit_reason"] = EXITS[out["exit"]]
         out.update(hit=bool(hit), case=int(case), contact=[float(cx), float(cy), float(cz)])
         return out
+
+    def _one_pose(self, pos, rot, quat_order, name):
+        """``(P, R, orthonormality tolerance)`` of one body's pose for the one-pair kernel."""
+        if rot is not None and quat_order is None and not hasattr(rot, "as_matrix") and np.shape(rot) == (3, 3):
+            f = self._pair_array  # a matrix: checked by the kernel, with messages naming the argument
+            return f(pos, (3,), "pos_" + name), f(rot, (3, 3), "rot_" + name), self._ortho_tol(rot)
+        P, R = as_pose(pos, rot, quat_order=quat_order, name=name, dtype=self.dtype)  # checked here
+        if P.shape != (3,) or R.shape != (3, 3):
+            raise ValueError(
+                f"collide_pair takes one pose per body; the pose of {name} is a batch of {len(P)} (use collide)"
+            )
+        # as_pose applied the orthonormality rule of the input's dtype; the kernel's check must not be stricter.
+        return _kernel_array(P, (3,), self.dtype), _kernel_array(R, (3, 3), self.dtype), np.inf
 
     def _is_single_pair(self, pos_a, rot_a, pos_b, rot_b, quat_order):
         if self._a_per or self._b_per or quat_order is not None:
@@ -359,7 +401,8 @@ def collide(
         One prism shared by all pairs, or a PrismSet with one prism per pair.
     pos_a, pos_b : array_like, shape (3,) or (N, 3); or (4, 4) / (N, 4, 4)
         Positions of the prisms' local origins in world coordinates, or
-        homogeneous transforms (then leave ``rot_a``/``rot_b`` as None).
+        homogeneous transforms (then leave ``rot_a``/``rot_b`` as None;
+        ``collide(a, b, T_a, T_b)`` with two transforms also works).
     rot_a, rot_b : array_like or scipy.spatial.transform.Rotation
         Rotations whose columns are the local axes in world coordinates:
         (3, 3) / (N, 3, 3) matrices, a scipy ``Rotation``, or quaternions

@@ -463,6 +463,29 @@ def as_pose(pos, rot=None, *, quat_order=None, name="a", dtype=np.float64):
     return p, R
 
 
+def _is_transform(x) -> bool:
+    if x is None or _is_scipy_rotation(x):
+        return False
+    try:
+        shape = np.shape(x)
+    except (ValueError, TypeError):  # ragged: the pose parser names the problem
+        return False
+    return len(shape) in (2, 3) and shape[-2:] == (4, 4)
+
+
+def transforms_as_written(pos_a, rot_a, pos_b, rot_b):
+    """The arguments of ``collide(a, b, T_a, T_b)`` rearranged as ``(T_a, None, T_b, None)``.
+
+    Two 4x4 transforms given positionally land in ``pos_a`` and ``rot_a``.
+    A rotation is never 4x4, and when ``pos_a`` is a transform ``rot_a``
+    must be None, so ``rot_a`` holding a transform can only be ``T_b``.
+    Anything else is returned as it is.
+    """
+    if pos_b is None and rot_b is None and _is_transform(pos_a) and _is_transform(rot_a):
+        return pos_a, None, rot_a, None
+    return pos_a, rot_a, pos_b, rot_b
+
+
 def _batch_size(a: np.ndarray, single_ndim: int, name: str) -> int | None:
     """None for a single item, else the leading dimension."""
     a = np.asarray(a)

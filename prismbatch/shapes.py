@@ -35,7 +35,9 @@ def validate_polygon(xy, *, name="polygon"):
     Parameters
     ----------
     xy : array_like, shape (n, 2)
-        Vertices in order (clockwise or counter-clockwise).
+        Vertices in order (clockwise or counter-clockwise). A closed ring,
+        whose last vertex repeats the first (as shapely and GeoJSON write
+        polygons), is accepted: the repeat is dropped.
     name : str
         Used in error messages, e.g. ``"shape_b[3]"``.
 
@@ -43,7 +45,8 @@ def validate_polygon(xy, *, name="polygon"):
     -------
     numpy.ndarray, shape (n, 2)
         The same vertices, counter-clockwise, C-contiguous float64. The only
-        repair made is reversing clockwise order.
+        changes made are reversing clockwise order and dropping a closing
+        repeat of the first vertex.
 
     Raises
     ------
@@ -63,6 +66,8 @@ def validate_polygon(xy, *, name="polygon"):
     arr = np.array(arr, dtype=np.float64, order="C")
     if arr.ndim != 2 or arr.shape[1] != 2:
         raise ValueError(f"{name}: vertices must have shape (n, 2), got {arr.shape}")
+    if arr.shape[0] >= 4 and (arr[0] == arr[-1]).all():
+        arr = np.ascontiguousarray(arr[:-1])  # a closed ring: the last vertex closes it, it is not another
     n = arr.shape[0]
     if n < 3:
         raise ValueError(f"{name}: a polygon needs at least 3 vertices, got {n}")
