@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import textwrap
 
 from . import __version__
 
@@ -56,7 +57,8 @@ def _demo(args):
     print(f"hits: {res['hits']:,} ({100.0 * res['hits'] / res['n_pairs']:.1f} %)")
     print("case  pairs       share  meaning")
     for k, v in sorted(res["case_counts"].items()):
-        print(f"{k:>4}  {v:>10,}  {100.0 * v / res['n_pairs']:5.1f} %  {CASES[k][:70]}")
+        meaning = textwrap.shorten(CASES[k], 70, placeholder=" ...")  # whole words
+        print(f"{k:>4}  {v:>10,}  {100.0 * v / res['n_pairs']:5.1f} %  {meaning}")
     return 0
 
 
@@ -235,7 +237,10 @@ def _replay(args):
 def build_parser():
     """The argument parser (exposed for documentation and tests)."""
     p = argparse.ArgumentParser(
-        prog="prismbatch", description="Batched collision detection between convex semi-infinite prisms."
+        prog="prismbatch",
+        description="Batched collision detection between convex semi-infinite prisms.",
+        epilog="Exit status: 0 success; 1 a disagreement or invalid output found (validate, replay); 2 a usage "
+        "error; 3 a missing optional dependency or a file that could not be read or written; 130 interrupted.",
     )
     p.add_argument("--version", action="version", version=f"prismbatch {__version__}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
@@ -456,7 +461,11 @@ def _study_parser(sub):
         help="peers to time: fcl, coal (default: fcl,coal; coal is skipped with a note if missing)",
     )
     p.add_argument(
-        "--table-vertices", type=int, default=3600, metavar="N", help="vertex count of Table I (default: 3600)"
+        "--table-vertices",
+        type=int,
+        default=None,
+        metavar="N",
+        help="vertex count of Table I (default: 3600, the paper's, when measured, else the largest measured)",
     )
     p.add_argument(
         "--lp-checks",
@@ -558,6 +567,29 @@ def main(argv=None):
     except (ValueError, TypeError) as exc:
         print(f"prismbatch: error: {exc}", file=sys.stderr)
         return 2
+    except ImportError as exc:  # an optional dependency: one line, with the pip command
+        print(f"prismbatch: {_missing_dependency(exc)}", file=sys.stderr)
+        return 3
+    except OSError as exc:  # a file could not be read or written (a full disk, no permission)
+        print(f"prismbatch: error: {exc}", file=sys.stderr)
+        return 3
+    except KeyboardInterrupt:
+        print("prismbatch: interrupted", file=sys.stderr)
+        return 130
+
+
+#: The extra that installs a module the lab imports when a subcommand needs it.
+_EXTRAS = {"matplotlib": "plot", "fcl": "fcl", "coal": "coal", "scipy": "exact", "highspy": "exact", "tqdm": "progress"}
+
+
+def _missing_dependency(exc):
+    """The message of an ImportError, with the pip command when it is a bare "No module named ..."."""
+    root = (exc.name or "").split(".")[0]
+    if root in _EXTRAS and "pip install" not in str(exc):
+        return f"{root} is not installed: pip install 'prismbatch[{_EXTRAS[root]}]'"
+    if root in ("dask", "distributed") and "pip install" not in str(exc):
+        return "dask is not installed: pip install 'prismbatch[dask]'"
+    return str(exc)
 
 
 if __name__ == "__main__":

@@ -62,3 +62,26 @@ def test_list_arguments_are_checked(capsys):
         main(["study", "--vertices", "36,abc"])
     assert e.value.code == 2
     assert "comma-separated integers" in capsys.readouterr().err
+
+
+def test_a_missing_optional_dependency_is_one_line_with_the_pip_command(monkeypatch, capsys):
+    from prismbatch import cli
+
+    def no_matplotlib(args):
+        raise ModuleNotFoundError("No module named 'matplotlib'", name="matplotlib")
+
+    def interrupted(args):
+        raise KeyboardInterrupt
+
+    def disk_full(args):
+        raise OSError(28, "No space left on device", "out/validation.json")
+
+    for fake, status in ((no_matplotlib, 3), (interrupted, 130), (disk_full, 3)):
+        monkeypatch.setattr(cli, "_demo", fake)
+        assert cli.main(["demo"]) == status
+    err = capsys.readouterr().err.splitlines()
+    assert err == [
+        "prismbatch: matplotlib is not installed: pip install 'prismbatch[plot]'",
+        "prismbatch: interrupted",
+        "prismbatch: error: [Errno 28] No space left on device: 'out/validation.json'",
+    ]

@@ -301,3 +301,10 @@ def test_bad_arguments(kw, exc, word):
 def test_write_study_rejects_other_objects(tmp_path):
     with pytest.raises(TypeError, match="result"):
         write_study({"latency": []}, tmp_path)
+
+
+def test_table_vertices_defaults_to_the_largest_count_and_says_the_paper_is_not_comparable():
+    r = run_study(vertices=(8, 16), cases=(1,), poses_per_case=2, repeats=1, batch_pairs=8, peers=(), progress=False)
+    assert r.settings["table_vertices"] == 16
+    text = "\n".join(format_study(r))
+    assert "paper's columns are its 3600-vertex figures; this table is at 16 vertices" in text

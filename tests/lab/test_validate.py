@@ -325,3 +325,9 @@ def test_stiff_hook(tmp_path, monkeypatch):
     assert "fake section" in open(paths["markdown"]).read()
     assert len(paths["stiff"]) == 1 and open(paths["stiff"][0]).read().startswith("a,b")
     assert json.loads(open(paths["json"]).read())["stiff"] == {"fake": True}
+
+
+def test_a_run_against_no_reference_says_nothing_was_compared():
+    r = V.validate(500, distributions=("facing",), fcl=False, lp_samples=0, seed=2, progress=False)
+    assert r.ok
+    assert V.format_validation(r)[-1].startswith("RESULT: NO COMPARISON: no reference ran")

@@ -16,6 +16,8 @@ PAPER_TABLE1_MS = {
 }
 #: The paper's fitted growth (Fig. 7c), ms per 1000 vertices; ratio 2.8 %.
 PAPER_GROWTH_MS_PER_1000 = {"projection": 0.037, "swift": 1.3}
+#: Vertex count of the paper's Table I.
+PAPER_TABLE_VERTICES = 3600
 #: Vertex counts of the paper's Fig. 7.
 PAPER_VERTICES = (36, 180, 360, 1800, 3600)
 #: The cases of the paper's Table I (10 and 11 are this package's additions).

@@ -212,17 +212,24 @@ def format_validation(result):
         f"records: {result.records_total} disagreement(s) in all, {len(result.records)} saved "
         f"({', '.join(f'{k}: {v}' for k, v in kinds.items()) or 'none'})"
     )
-    L.append(
-        "RESULT: "
-        + (
-            "OK, no disagreement outside the touching band, contacts valid"
-            if result.ok
-            else "FAILURES (see the records)"
-        )
-    )
+    L.append("RESULT: " + _verdict(result))
     if result.stiff is not None:
         L.extend(result.stiff.summary_lines())
     return L
+
+
+def _verdict(result):
+    """The run's one-line verdict; a run that compared against no reference says so."""
+    cfg = result.config
+    if not result.ok:
+        return "FAILURES (see the records)"
+    if cfg["fcl_fraction"] == 0.0 and cfg["lp_samples"] == 0:
+        checked = "contacts valid" if cfg["contact_check"] else "nothing else checked either"
+        return (
+            "NO COMPARISON: no reference ran (FCL off and --lp-samples 0), so hit/miss answers were not "
+            f"checked; {checked}"
+        )
+    return "OK, no disagreement outside the touching band, contacts valid"
 
 
 def _markdown(result):
@@ -241,13 +248,7 @@ def _markdown(result):
         "LP decides; inside it any answer is allowed. FCL runs on finite stand-ins of length "
         "`peers.standin_lengths` (rounded up to a power of two), checked against the LP.",
         "",
-        "**Result: "
-        + (
-            "no disagreement outside the band, every contact valid, no non-finite output."
-            if result.ok
-            else "FAILURES, see the replay file."
-        )
-        + "**",
+        f"**Result: {_verdict(result)}.**",
         "",
         "## Summary",
         "",
