@@ -183,17 +183,35 @@ def test_growth_rows_match_independent_fit(res):
         b1, b0 = np.polyfit(VERTS, y, 1)
         assert g["slope_us_per_1000"] == pytest.approx(1000 * b1, rel=1e-6, abs=1e-9)
         assert g["intercept_us"] == pytest.approx(b0, rel=1e-6, abs=1e-9)
+        c1, c0 = np.polyfit(np.log2(VERTS), y, 1)
+        assert g["log_slope_us_per_doubling"] == pytest.approx(c1, rel=1e-6, abs=1e-9)
+        assert g["log_intercept_us"] == pytest.approx(c0, rel=1e-6, abs=1e-9)
+        assert g["model"] == ("log" if g["r2_log"] > g["r2"] else "linear")
+        assert g["growth_factor"] == pytest.approx(y[-1] / y[0])
         if g["method"] == "prismbatch":
             other = next(h for h in res.growth if h["method"] == "fcl" and h["series"] == g["series"])
-            if other["slope_us_per_1000"] > 0:
+            if other["slope_us_per_1000"] > 0 and min(g["r2"], other["r2"]) >= 0.9:
                 assert g["slope_ratio_vs_fcl"] == pytest.approx(g["slope_us_per_1000"] / other["slope_us_per_1000"])
+            else:  # a slope of a line that does not hold is not compared
+                assert g["slope_ratio_vs_fcl"] is None
+
+
+def test_log_growth_is_told_apart_from_a_line():
+    from prismbatch.lab.study.analysis import fit_log_growth
+
+    n = np.array([36, 180, 360, 1800, 3600, 7200])
+    per_doubling, icpt, r2 = fit_log_growth(n, 0.5 + 0.02 * np.log2(n))
+    assert per_doubling == pytest.approx(0.02) and icpt == pytest.approx(0.5) and r2 == pytest.approx(1.0)
+    # a log-shaped cost: the line fits worse than the log model
+    t = 0.5 + 0.02 * np.log2(n)
+    assert fit_growth(n, t)[2] < fit_log_growth(n, t)[2]
 
 
 def test_format_study(res):
     lines = format_study(res)
     assert all(isinstance(x, str) for x in lines)
     text = "\n".join(lines)
-    assert "Table I at 24 vertices" in text and "per 1000 vertices" in text and "First call" in text
+    assert "Table I at 24 vertices" in text and "Growth with n" in text and "First call" in text
     assert res.compile["collide_pair_s"] >= 0 and res.compile["collide_parallel_s"] >= 0
 
 
@@ -308,3 +326,14 @@ def test_table_vertices_defaults_to_the_largest_count_and_says_the_paper_is_not_
     assert r.settings["table_vertices"] == 16
     text = "\n".join(format_study(r))
     assert "paper's columns are its 3600-vertex figures; this table is at 16 vertices" in text
+
+
+def test_growth_text_names_the_model_and_says_when_neither_holds():
+    from prismbatch.lab.study.analysis import growth_model_text
+
+    row = dict(model="linear", r2=0.62, r2_log=0.5, slope_us_per_1000=-0.0841, log_slope_us_per_doubling=0.01)
+    assert growth_model_text(row) == "no trend beyond the noise (best r² 0.62)"  # no negative "growth"
+    row.update(model="log", r2=0.7, r2_log=0.98, log_slope_us_per_doubling=0.189)
+    assert growth_model_text(row) == "+0.189 µs per doubling of n (log fit, r² 0.98)"
+    row.update(model="linear", r2=1.0, slope_us_per_1000=8.75)
+    assert growth_model_text(row) == "+8.75 µs / 1000 vertices (line, r² 1.00)"

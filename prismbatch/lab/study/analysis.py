@@ -8,6 +8,34 @@ import numpy as np
 
 from .constants import METHODS, PAPER_CASES, PAPER_TABLE1_MS, PEERS
 
+#: A straight line's slope counts as "growth per 1000 vertices" (and slopes are compared between
+#: methods) only where the line explains the times at least this well; a cost that grows like log n
+#: gives a line of low r², whose slope can even come out negative.
+LINEAR_R2_MIN = 0.9
+
+
+def _line_fit(x, t):
+    """Least-squares ``t = b0 + b1 x``: ``(b1, b0, r2)``, r2 NaN if the times are all equal."""
+    A = np.column_stack([np.ones_like(x), x])
+    (b0, b1), *_ = np.linalg.lstsq(A, t, rcond=None)
+    ss_res = float(np.sum((t - (b0 + b1 * x)) ** 2))
+    ss_tot = float(np.sum((t - t.mean()) ** 2))
+    return float(b1), float(b0), (1.0 - ss_res / ss_tot if ss_tot > 0 else math.nan)
+
+
+def _checked_series(vertices, times):
+    n = np.asarray(vertices, dtype=float).ravel()
+    t = np.asarray(times, dtype=float).ravel()
+    if n.shape != t.shape:
+        raise ValueError(f"vertices and times must have the same length, got {n.size} and {t.size}")
+    if not (np.isfinite(n).all() and np.isfinite(t).all()):
+        raise ValueError("vertices and times must be finite")
+    if np.unique(n).size < 2:
+        raise ValueError("fit_growth needs at least two distinct vertex counts")
+    if (n <= 0).any():
+        raise ValueError("vertex counts must be positive")
+    return n, t
+
 
 def fit_growth(vertices, times):
     """Least-squares line ``t = intercept + slope * n``.
@@ -34,20 +62,25 @@ def fit_growth(vertices, times):
         Fewer than two distinct vertex counts, mismatched lengths or
         non-finite values.
     """
-    n = np.asarray(vertices, dtype=float).ravel()
-    t = np.asarray(times, dtype=float).ravel()
-    if n.shape != t.shape:
-        raise ValueError(f"vertices and times must have the same length, got {n.size} and {t.size}")
-    if not (np.isfinite(n).all() and np.isfinite(t).all()):
-        raise ValueError("vertices and times must be finite")
-    if np.unique(n).size < 2:
-        raise ValueError("fit_growth needs at least two distinct vertex counts")
-    A = np.column_stack([np.ones_like(n), n])
-    (b0, b1), *_ = np.linalg.lstsq(A, t, rcond=None)
-    ss_res = float(np.sum((t - (b0 + b1 * n)) ** 2))
-    ss_tot = float(np.sum((t - t.mean()) ** 2))
-    r2 = 1.0 - ss_res / ss_tot if ss_tot > 0 else math.nan
-    return float(b1 * 1000.0), float(b0), r2
+    n, t = _checked_series(vertices, times)
+    slope, icpt, r2 = _line_fit(n, t)
+    return slope * 1000.0, icpt, r2
+
+
+def fit_log_growth(vertices, times):
+    """Least-squares ``t = intercept + slope * log2(n)``: the model of an O(log n) search.
+
+    Returns
+    -------
+    slope_per_doubling : float
+        Growth each time n doubles, in the unit of ``times``.
+    intercept : float
+        Fitted time at n = 1.
+    r2 : float
+        Coefficient of determination (NaN if the times are all equal).
+    """
+    n, t = _checked_series(vertices, times)
+    return _line_fit(np.log2(n), t)
 
 
 def average_series(res, method, cases):
@@ -84,25 +117,44 @@ def growth_rows(res):
     fits = {}
     for key, pts in series.items():
         if len(pts) >= 2:
-            fits[key] = fit_growth(list(pts), list(pts.values())) + (len(pts),)
-    for (method, name), (slope, icpt, r2, k) in fits.items():
+            fits[key] = (fit_growth(list(pts), list(pts.values())), fit_log_growth(list(pts), list(pts.values())), pts)
+    for (method, name), ((slope, icpt, r2), (lslope, licpt, lr2), pts) in fits.items():
+        ns = sorted(pts)
         row = {
             "method": method,
             "series": name,
             "slope_us_per_1000": slope,
             "intercept_us": icpt,
             "r2": r2,
-            "points": k,
+            "log_slope_us_per_doubling": lslope,
+            "log_intercept_us": licpt,
+            "r2_log": lr2,
+            # the model that explains the times better (NaN r2, flat times: the line)
+            "model": "log" if lr2 > r2 else "linear",
+            "growth_factor": pts[ns[-1]] / pts[ns[0]] if pts[ns[0]] > 0 else None,
+            "points": len(pts),
             "cases": ",".join(map(str, avg_cases)) if name == "average" else name[5:],
             "slope_ratio_vs_fcl": None,
             "slope_ratio_vs_coal": None,
         }
         for peer in PEERS:
             other = fits.get((peer, name))
-            if other is not None and other[0] > 0:
-                row[f"slope_ratio_vs_{peer}"] = slope / other[0]
+            # Slopes compare only where both are lines that hold (see LINEAR_R2_MIN).
+            if other is not None and other[0][0] > 0 and min(r2, other[0][2]) >= LINEAR_R2_MIN:
+                row[f"slope_ratio_vs_{peer}"] = slope / other[0][0]
         rows.append(row)
     return rows
+
+
+def growth_model_text(g):
+    """The fitted model of a growth row in words, e.g. "+0.21 µs per doubling of n (log fit, r² 0.97)"."""
+    best = max((r for r in (g["r2"], g["r2_log"]) if r == r), default=math.nan)
+    if not best >= LINEAR_R2_MIN:  # neither model holds: the times do not trend beyond their noise
+        return f"no trend beyond the noise (best r² {'-' if best != best else f'{best:.2f}'})"
+    if g["model"] == "log":
+        return f"{g['log_slope_us_per_doubling']:+.3g} µs per doubling of n (log fit, r² {g['r2_log']:.2f})"
+    r2 = "-" if g["r2"] != g["r2"] else f"{g['r2']:.2f}"
+    return f"{g['slope_us_per_1000']:+.3g} µs / 1000 vertices (line, r² {r2})"
 
 
 def growth_row(res, method, series="average"):

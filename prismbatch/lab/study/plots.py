@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..report import legend_below, new_figure, pct, save_figure
-from .analysis import average_series, growth_row
+from ..report import fmt, legend_below, new_figure, pct, save_figure
+from .analysis import average_series, growth_model_text, growth_row
 from .constants import PAPER_GROWTH_MS_PER_1000, PEERS
 
 _SHORT = {"fcl": "FCL", "coal": "coal"}
@@ -94,10 +94,12 @@ def _fig7b(res, out_dir):
 
 
 def _growth_label(res, m, g):
-    """Legend label of method ``m`` in Fig. 7c: its slope and, for prismbatch, the ratios to the peers'."""
+    """Legend label of method ``m`` in Fig. 7c: its growth factor, the model that fits it and, where
+    both are straight lines that hold, prismbatch's slope as a share of the peers'."""
     lab = res.methods[m]
     if g is not None:
-        lab += f": {g['slope_us_per_1000']:+.3g} µs / 1000 vertices"
+        s = res.settings["vertices"]
+        lab += f": ×{fmt(g['growth_factor'], '.3g')} from n = {min(s)} to {max(s)}; " + growth_model_text(g)
         if m.startswith("prismbatch"):
             rat = [
                 f"{pct(g[f'slope_ratio_vs_{p}'])} of {_SHORT[p]}'s"
@@ -123,11 +125,14 @@ def _fig7c(res, out_dir):
         g = growth_row(res, m)
         lab = _growth_label(res, m, g)
         if g is not None:
-            fit = g["intercept_us"] + g["slope_us_per_1000"] * nn / 1000.0
+            if g["model"] == "log":
+                fit = g["log_intercept_us"] + g["log_slope_us_per_doubling"] * np.log2(nn)
+            else:
+                fit = g["intercept_us"] + g["slope_us_per_1000"] * nn / 1000.0
             ax.plot(nn[fit > 0], fit[fit > 0], "--", color=col, lw=1)
         ax.plot(list(pts), list(pts.values()), marker=mk, color=col, lw=0, ms=6, label=lab)
     pg = PAPER_GROWTH_MS_PER_1000
-    ax.plot([], [], "--", color="grey", label="least-squares line t = a + b n")
+    ax.plot([], [], "--", color="grey", label="least-squares fit, t = a + b n or t = a + b log2 n (the better r²)")
     _vertex_axes(ax, "mean time per query over cases (µs)")
     ax.set_title(
         f"Fig. 7c: average over cases {avg}, single-query latency\n"

@@ -6,7 +6,7 @@ import os
 from pathlib import Path
 
 from ..report import fmt, pct
-from .analysis import growth_row
+from .analysis import growth_model_text, growth_row
 from .constants import PAPER_GROWTH_MS_PER_1000, PAPER_SOURCE, PAPER_TABLE_VERTICES
 
 
@@ -77,20 +77,18 @@ def _growth_lines(res):
     s = res.settings
     pg = PAPER_GROWTH_MS_PER_1000
     L = [
-        f"Growth per 1000 vertices (least-squares line over n = {', '.join(map(str, s['vertices']))}; "
-        f"average over cases {next((r['cases'] for r in res.growth if r['series'] == 'average'), '-')}):"
+        f"Growth with n (average over cases {next((r['cases'] for r in res.growth if r['series'] == 'average'), '-')}; "
+        f"n = {', '.join(map(str, s['vertices']))}): the factor from the smallest to the largest n, and the model "
+        "that fits better, a line t = a + b n or t = a + b log2 n:"
     ]
     for m in res.methods:
         g = growth_row(res, m)
         if g is None:
             continue
         extra = ""
-        if m.startswith("prismbatch"):
-            extra = f"; slope ratio vs FCL {pct(g['slope_ratio_vs_fcl'])}, vs coal {pct(g['slope_ratio_vs_coal'])}"
-        L.append(
-            f"   {res.methods[m]}: {g['slope_us_per_1000']:+.3g} µs per 1000 vertices, intercept "
-            f"{g['intercept_us']:.3g} µs, r² {fmt(g['r2'], '.2f')}{extra}"
-        )
+        if m.startswith("prismbatch") and (g["slope_ratio_vs_fcl"] is not None or g["slope_ratio_vs_coal"] is not None):
+            extra = f"; line slope vs FCL {pct(g['slope_ratio_vs_fcl'])}, vs coal {pct(g['slope_ratio_vs_coal'])}"
+        L.append(f"   {res.methods[m]}: x{fmt(g['growth_factor'], '.3g')}; {growth_model_text(g)}{extra}")
     L.append(
         f"   paper: projection {1e3 * pg['projection']:g} µs vs SWIFT {1e3 * pg['swift']:g} µs "
         f"per 1000 vertices = {pct(pg['projection'] / pg['swift'])}"
@@ -199,23 +197,28 @@ def markdown(res, paths):
         )
     L += [
         "",
-        "## Growth per 1000 vertices (average over cases)",
+        "## Growth with the vertex count (average over cases)",
         "",
-        "| method | slope (µs / 1000 vertices) | intercept (µs) | r² | slope / FCL's | slope / coal's |",
-        "|---|---|---|---|---|---|",
+        "Slopes of lines are compared only where both lines hold (r² >= 0.9); a cost that grows like log n "
+        "is described by its growth per doubling of n instead.",
+        "",
+        "| method | growth factor | better model | line: µs / 1000 v (r²) | log: µs per doubling (r²) | "
+        "line slope / FCL's | line slope / coal's |",
+        "|---|---|---|---|---|---|---|",
     ]
     for m in res.methods:
         g = growth_row(res, m)
         if g is not None:
             pbm = m.startswith("prismbatch")
             L.append(
-                f"| {res.methods[m]} | {g['slope_us_per_1000']:.3g} | {g['intercept_us']:.3g} | "
-                f"{fmt(g['r2'], '.2f')} | {pct(g['slope_ratio_vs_fcl']) if pbm else ''} | "
-                f"{pct(g['slope_ratio_vs_coal']) if pbm else ''} |"
+                f"| {res.methods[m]} | x{fmt(g['growth_factor'], '.3g')} | {g['model']} | "
+                f"{g['slope_us_per_1000']:.3g} ({fmt(g['r2'], '.2f')}) | "
+                f"{g['log_slope_us_per_doubling']:.3g} ({fmt(g['r2_log'], '.2f')}) | "
+                f"{pct(g['slope_ratio_vs_fcl']) if pbm else ''} | {pct(g['slope_ratio_vs_coal']) if pbm else ''} |"
             )
     pg = PAPER_GROWTH_MS_PER_1000
     L.append(
-        f"| paper: projection / SWIFT | {1e3 * pg['projection']:g} / {1e3 * pg['swift']:g} | | | "
+        f"| paper: projection / SWIFT | | line | {1e3 * pg['projection']:g} / {1e3 * pg['swift']:g} | | "
         f"{pct(pg['projection'] / pg['swift'])} | |"
     )
     L += [
