@@ -24,6 +24,7 @@ import time
 from pathlib import Path
 
 from .report import progress, run_metadata, write_json
+from .verdicts import paper_table
 
 __all__ = ["PARTS", "run_reproduce"]
 
@@ -92,7 +93,8 @@ def _files(paths):
 def _section(part, files):
     """One report section: the part's own Markdown (headings demoted one level,
     figure links turned into inline images), plus any figure it does not show."""
-    md = [f for f in files if f.endswith(".md")]
+    # A part's own page is embedded; a page it links (the stiff tables) stays a linked file.
+    md = [f for f in files if f.endswith(".md") and "stiff" not in Path(f).name]
     pngs = [Path(f).name for f in files if f.endswith(".png")]
     L = []
     for f in md:
@@ -144,12 +146,12 @@ def run_reproduce(out_dir, *, quick=False, seed=0, parts=None, progress_bar=True
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     chosen = [p for p in PARTS if p in parts]
-    wall, files, sections = {}, [], []
+    wall, files, sections, results = {}, [], [], {}
     bar = progress(len(chosen), enabled=progress_bar, unit="part", desc="reproduce")
     for part in chosen:
         bar.set_description(f"reproduce: {part}")
         t0 = time.perf_counter()
-        paths, _ = _RUNNERS[part](out, quick, seed, progress_bar)
+        paths, results[part] = _RUNNERS[part](out, quick, seed, progress_bar)
         wall[part] = time.perf_counter() - t0
         part_files = _files(paths)
         files += part_files
@@ -174,6 +176,7 @@ def run_reproduce(out_dir, *, quick=False, seed=0, parts=None, progress_bar=True
         f"coal {v['coal']}; {meta['machine']['cpu']}, {meta['machine']['numba_threads']} Numba thread(s); "
         f"seed {seed}; {'quick' if quick else 'full'} run.",
         "",
+        *paper_table(results.get("study"), results.get("experiment")),
         "| part | wall time |",
         "|---|---|",
         *(f"| {p} | {wall[p]:.1f} s |" for p in chosen),

@@ -103,3 +103,24 @@ def test_notebook_redraws_every_figure_from_the_csvs(quick_output, tmp_path, mon
 def test_reproduce_rejects_unknown_parts(tmp_path, capsys):
     assert main(["reproduce", "--parts", "nonsense", "--out", str(tmp_path)]) == 2
     assert "unknown part" in capsys.readouterr().err
+
+
+def test_report_opens_with_the_papers_numbers_beside_ours(quick_output):
+    report = (quick_output / "report.md").read_text()
+    head = report.split("| part | wall time |")[0]
+    assert "## The paper's numbers beside ours" in head
+    rows = [ln for ln in head.splitlines() if ln.startswith("| ") and not ln.startswith("| quantity")]
+    names = [r.split(" | ")[0][2:] for r in rows]
+    assert [f"Table I, case {c}" for c in range(1, 10)] == names[:9]
+    for want in (
+        "Fig. 7 growth with n",
+        "experiment: case sequence",
+        "experiment: first collision",
+        "experiment: contact class",
+        "experiment: detection cost",
+    ):
+        assert want in names
+    verdicts = [r.rstrip(" |").split(" | ")[-1] for r in rows]
+    assert all(v.startswith(("reproduced", "not reproduced", "not measured", "peer not run")) for v in verdicts)
+    # the stiff suite's tables are a linked file, not part of the report
+    assert "validation_stiff.md" in report and (quick_output / "validation_stiff.md").exists()

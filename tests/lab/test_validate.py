@@ -322,8 +322,11 @@ def test_stiff_hook(tmp_path, monkeypatch):
     assert calls == [(True, 4)]
     assert "stiff: fake summary" in V.format_validation(r)
     paths = V.write_validation(r, tmp_path)
-    assert "fake section" in open(paths["markdown"]).read()
-    assert len(paths["stiff"]) == 1 and open(paths["stiff"][0]).read().startswith("a,b")
+    page = open(paths["markdown"]).read()
+    # the summary in validation.md, the section's tables in their own linked page
+    assert "stiff: fake summary" in page and "fake section" not in page and "(validation_stiff.md)" in page
+    assert len(paths["stiff"]) == 2 and open(paths["stiff"][0]).read().startswith("a,b")
+    assert paths["stiff"][1].endswith("validation_stiff.md") and "fake section" in open(paths["stiff"][1]).read()
     assert json.loads(open(paths["json"]).read())["stiff"] == {"fake": True}
 
 

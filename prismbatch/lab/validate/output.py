@@ -317,9 +317,20 @@ def _markdown(result):
         f"{result.records_total} records ({len(result.records)} kept in `validation_replay.json`), with full "
         "inputs (shapes, poses, seed, spawn key).",
     ]
-    if result.stiff is not None:
-        L += ["", result.stiff.markdown()]
+    if result.stiff is not None:  # its long tables live in their own file
+        L += [
+            "",
+            "## Stiff and extreme suite",
+            "",
+            *result.stiff.summary_lines(),
+            "",
+            f"Its tables: [{STIFF_MARKDOWN}]({STIFF_MARKDOWN}).",
+        ]
     return "\n".join(L) + "\n"
+
+
+#: The stiff suite's tables, linked from validation.md.
+STIFF_MARKDOWN = "validation_stiff.md"
 
 
 def _write_replay(path, records, meta):
@@ -390,4 +401,7 @@ def write_validation(result, out_dir):
         for name, (header, rows) in result.stiff.csv_tables().items():
             fname = name if name.startswith("stiff") else f"stiff_{name}"
             paths["stiff"].append(write_csv(out / f"{fname}.csv", header, rows))
+        md = out / STIFF_MARKDOWN
+        md.write_text(result.stiff.markdown(), encoding="utf-8")
+        paths["stiff"].append(str(md))
     return paths
