@@ -159,11 +159,11 @@ class Collider:
         self._b = set_b.kernel_arrays(dt)
         self._shape_args = (self._a.floats, self._a.ints, self._b.floats, self._b.ints)  # one-pair calls
         self._eps = float(np.finfo(dt).eps)
-        self._pair_kernel = _batch.collide_pair[dt]
-        ortho = ortho_tolerance(dt, dt)
-        self._pair_scalars = (self.rtol, self.atol, self._eps, ortho, ortho, self._max_magnitude)
         # Orthonormality tolerance by the input's dtype (the one rule of as_pose).
         self._ortho_tols = {t: ortho_tolerance(t, dt) for t in (np.dtype(np.float64), np.dtype(np.float32))}
+        self._pair_kernel = _batch.collide_pair[dt]
+        ortho = self._ortho_tols[dt]  # the fast path takes arrays of the compute dtype only
+        self._pair_scalars = (self.rtol, self.atol, self._eps, ortho, ortho, self._max_magnitude)
         self._n_shapes = None
         for per, s, nm in ((self._a_per, set_a, "shape_a"), (self._b_per, set_b, "shape_b")):
             if per:

@@ -16,6 +16,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ._kernels.batch import pack, unpack
 from ._kernels.planar import edge_search_tables
 from .config import MAX_VERTICES, MIN_RELATIVE_AREA, MIN_RELATIVE_EDGE, SUPPORTED_RANGE
 from .poses import real_scalar
@@ -343,34 +344,26 @@ class PrismSet:
         """The arrays the kernels read, cast once to ``dtype``, as a :class:`PrismArrays` (kept per dtype).
 
         All floats of the set live in one array and all integers in another
-        (the fields are views into them): ``floats`` holds ``vx, vy,
-        edge_angle, vertex_angle, inv_edge_len`` (``t`` values each, ``t`` the
-        total vertex count), ``radius`` (``m``) and ``centre`` (``2 m``);
-        ``ints`` holds ``m``, ``offsets`` (``m + 1``) and ``edge_table`` (``t``).
+        (:func:`prismbatch._kernels.batch.pack`); the nine fields are views into them.
         """
         dt = np.dtype(dtype)
         cached = self._kernel_arrays.get(dt)
         if cached is not None:
             return cached
-        m, t = len(self.radius), int(self.offsets[-1])
-        floats = np.concatenate(
-            [self.vx, self.vy, self.edge_angle, self.vertex_angle, self.inv_edge_len, self.radius, self.centre.ravel()]
-        ).astype(dt)
-        ints = np.concatenate([[m], self.offsets, self.edge_table]).astype(np.int64)
         # Left writeable: Numba's dispatcher types read-only arrays on a slow path (~1 µs each per call).
-        out = PrismArrays(
-            floats[0:t],
-            floats[t : 2 * t],
-            floats[2 * t : 3 * t],
-            ints[m + 2 : m + 2 + t],
-            floats[3 * t : 4 * t],
-            floats[4 * t : 5 * t],
-            ints[1 : m + 2],
-            floats[5 * t : 5 * t + m],
-            floats[5 * t + m :].reshape(m, 2),
-            floats,
-            ints,
+        floats, ints = pack(
+            self.vx,
+            self.vy,
+            self.edge_angle,
+            self.edge_table,
+            self.vertex_angle,
+            self.inv_edge_len,
+            self.offsets,
+            self.radius,
+            self.centre,
+            dt,
         )
+        out = PrismArrays(*unpack.py_func(floats, ints), floats, ints)
         self._kernel_arrays[dt] = out
         return out
 

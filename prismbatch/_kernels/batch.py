@@ -16,7 +16,8 @@ from numba import prange
 
 from .checks import first_bad_rotation
 from .jit import first_call, jit, per_dtype, twins
-from .projection import CASE_ABOVE, T_P, T_R, T_TOL, pair_test, surely_above, top_vertex
+from .planar import extreme_vertex
+from .projection import CASE_ABOVE, T_P, T_R, T_TOL, pair_test, surely_above
 
 
 # error_model="numpy": with Python's ZeroDivisionError check on 1 / det the
@@ -140,7 +141,7 @@ def pair_world(
             trace[T_P + j] = v
         for j, v in enumerate((r00, r01, r02, r10, r11, r12, r20, r21, r22)):
             trace[T_R + j] = v
-    imax = top_vertex(bvx, bvy, beang, betab, sb, nb, r20, r21)
+    imax = extreme_vertex(bvx, bvy, beang, betab, sb, nb, r20, r21)  # b's vertex deepest into a
     if trace is None and surely_above(bvx, bvy, sb, imax, pz, r20, r21, r22, tol):
         # Most pairs of a scene leave here, without the call into pair_test (its arguments
         # cost more than this test); pair_test takes the same exit when tracing.
@@ -303,13 +304,25 @@ def use_parallel(parallel, n):
     return bool(parallel)
 
 
+def pack(vx, vy, edge_angle, edge_table, vertex_angle, inv_edge_len, offsets, radius, centre, dtype):
+    """A prism set's nine arrays as one float array of ``dtype`` and one int64 array (see :func:`unpack`).
+
+    ``floats``: ``vx, vy, edge_angle, vertex_angle, inv_edge_len`` (``t`` values
+    each, ``t`` the total vertex count), ``radius`` (``m``), ``centre`` (``2 m``);
+    ``ints``: ``m``, ``offsets`` (``m + 1``), ``edge_table`` (``t``).
+    """
+    floats = np.concatenate([vx, vy, edge_angle, vertex_angle, inv_edge_len, radius, np.ravel(centre)]).astype(dtype)
+    ints = np.concatenate([[len(radius)], offsets, edge_table]).astype(np.int64)
+    return floats, ints
+
+
 @jit(inline="always")
 def unpack(floats, ints):
-    """The nine arrays of a packed prism set, as views (layout: :meth:`prismbatch.shapes.PrismSet.kernel_arrays`).
+    """The nine arrays of a :func:`pack`-ed prism set, as views, in the order :func:`pack` takes them.
 
     Two arrays cross the dispatcher instead of nine: each array argument costs
     a one-pair call a few hundred nanoseconds of type checks and unboxing.
-    The layout is built in Python by ``kernel_arrays``; a test keeps the two in step.
+    Python builds its views with ``unpack.py_func``; a test compares the two.
     """
     m = ints[0]
     offsets = ints[1 : m + 2]

@@ -98,12 +98,13 @@ def _renamed(func, name):
 #: Seconds a first call may take before a notice says that it is compiling.
 COMPILE_NOTICE_AFTER_S = 1.0
 _called = set()  # keys of the calls made once in this process
+_notice = {"shown": False}  # once per process: the kernels of one run compile one after another
 
 
 def _compile_notice():
-    if "noticed" in _called:
+    if _notice["shown"]:
         return
-    _called.add("noticed")  # once per process: the kernels of one run compile one after another
+    _notice["shown"] = True
     print(
         "prismbatch: compiling the collision kernels for this process's first call (up to some 10 s once; "
         "later runs load them from Numba's cache)",

@@ -145,15 +145,9 @@ def _near_top_count(bvx, bvy, sb, nb, hx, hy, imax, zmax_h, tol):
 
 
 @jit(inline="always")
-def top_vertex(bvx, bvy, beang, betab, sb, nb, r20, r21):
-    """Index of b's end-face vertex deepest into a's body (the paper's Δ3 vertex): max of (r20, r21) . v."""
-    return extreme_vertex(bvx, bvy, beang, betab, sb, nb, r20, r21)
-
-
-@jit(inline="always")
 def surely_above(bvx, bvy, sb, imax, pz, r20, r21, r22, tol):
-    """The common case-1 exit (b wholly above a's end plane, its axis not pointing down), as
-    :func:`pair_test` takes it first: cheap enough for the caller to inline ahead of the full test."""
+    """The common case-1 exit, Δ3 < -tol and d_a.d_b <= 0 (b's end face beyond a's plane and its body
+    leaving it): :func:`pair_test`'s first test, cheap enough for the caller to take ahead of the call."""
     return pz + (r20 * bvx[sb + imax] + r21 * bvy[sb + imax]) < -tol and r22 <= 0.0
 
 
@@ -199,7 +193,8 @@ def pair_test(
     point (a's centred frame) lying within tol of both bodies. ``trace`` is
     None (no tracing) or a float array of TRACE_SIZE that receives the
     intermediate quantities (fields TRACE_FIELDS, exit codes EXITS). ``imax``
-    is :func:`top_vertex` (the caller needs it first for its own early exit). With
+    is b's end-face vertex deepest into a (``extreme_vertex`` in direction
+    (r20, r21)), found by the caller for its own early exit. With
     None, Numba compiles a specialisation with every trace branch removed,
     so the batch kernels pay nothing for it (an array argument would cost
     reference counting on every call).
@@ -215,7 +210,7 @@ def pair_test(
     if trace is not None:
         trace[T_ITOP] = imax
         trace[T_D3] = d3
-    if d3 < -tol and c <= 0.0:
+    if surely_above(bvx, bvy, sb, imax, pz, hx, hy, c, tol):  # d3 < -tol and c <= 0
         _done(trace, 1, CASE_ABOVE, False)
         return False, CASE_ABOVE, nan, nan, nan  # the common case: leave at once
     pr = math.hypot(px, py)

@@ -69,6 +69,7 @@ def test_a_slow_first_call_prints_one_compile_notice(capsys, monkeypatch):
 
     monkeypatch.setattr(jit, "COMPILE_NOTICE_AFTER_S", 0.05)
     monkeypatch.setattr(jit, "_called", set())
+    monkeypatch.setattr(jit, "_notice", {"shown": False})
     slow, fast = object(), object()
     assert jit.first_call(slow, lambda x: (time.sleep(0.3), x)[1], 7) == 7
     assert jit.first_call(fast, lambda: 1) == 1
@@ -99,8 +100,8 @@ def test_collide_reuses_its_collider_only_for_the_same_shapes_and_tolerances():
 
 
 def test_the_kernels_unpack_the_same_fields_the_prism_set_packs():
-    # The packed layout is written twice, once in Python (PrismSet.kernel_arrays) and once in the
-    # compiled unpack; this keeps the two in step.
+    # The packed layout (batch.pack / batch.unpack) is read in Python through unpack.py_func and in
+    # the kernels through the compiled unpack: both must give the PrismSet's arrays.
     import numpy as np
 
     import prismbatch as pb
@@ -109,9 +110,12 @@ def test_the_kernels_unpack_the_same_fields_the_prism_set_packs():
     s = pb.PrismSet([pb.Prism.regular(5, 1.0), [[0, 0], [3, 0], [0, 2.0]], pb.Prism.regular(40, 1e-3)])
     for dt in (np.float64, np.float32):
         k = s.kernel_arrays(dt)
-        for field, got in zip(k._fields, unpack.py_func(k.floats, k.ints)):
+        # the compiled unpack (what the kernels read) against the Python views ...
+        for field, got in zip(k._fields, unpack(k.floats, k.ints)):
             assert np.array_equal(got, getattr(k, field)) and got.dtype == getattr(k, field).dtype, field
-        assert np.array_equal(k.vx, s.vx.astype(dt)) and np.array_equal(k.centre, s.centre.astype(dt))
+        # ... and every field against the PrismSet's own arrays
+        for field in ("vx", "vy", "edge_angle", "vertex_angle", "inv_edge_len", "radius", "centre"):
+            assert np.array_equal(getattr(k, field), getattr(s, field).astype(dt)), field
         assert np.array_equal(k.edge_table, s.edge_table) and np.array_equal(k.offsets, s.offsets)
 
 
