@@ -13,7 +13,7 @@ side by side rather than equated.
 from __future__ import annotations
 
 from .report import fmt, pct
-from .study.analysis import growth_row
+from .study.analysis import growth_model_text, growth_row
 
 __all__ = ["paper_rows", "paper_table"]
 
@@ -44,7 +44,7 @@ def _study_rows(study):
         ns = study.settings["vertices"]
         ours = (
             f"x{fmt(pb['growth_factor'], '.3g')} vs FCL x{fmt(fcl['growth_factor'], '.3g')} from n = {min(ns)} to "
-            f"{max(ns)} (prismbatch: {pb['model']} fit, FCL: {fcl['model']} fit)"
+            f"{max(ns)} (prismbatch: {growth_model_text(pb)}; FCL: {growth_model_text(fcl)})"
         )
         slower = pb["growth_factor"] is not None and fcl["growth_factor"] is not None
         slower = slower and pb["growth_factor"] < fcl["growth_factor"]

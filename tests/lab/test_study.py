@@ -337,3 +337,35 @@ def test_growth_text_names_the_model_and_says_when_neither_holds():
     assert growth_model_text(row) == "+0.189 µs per doubling of n (log fit, r² 0.98)"
     row.update(model="linear", r2=1.0, slope_us_per_1000=8.75)
     assert growth_model_text(row) == "+8.75 µs / 1000 vertices (line, r² 1.00)"
+
+
+def test_paper_table_growth_row_uses_the_same_model_words_as_the_figure():
+    from types import SimpleNamespace
+
+    from prismbatch.lab.verdicts import paper_rows
+
+    flat = dict(
+        method="prismbatch",
+        series="average",
+        growth_factor=0.977,
+        model="linear",
+        r2=0.3,
+        r2_log=0.4,
+        slope_us_per_1000=-0.01,
+        log_slope_us_per_doubling=0.0,
+    )
+    line = dict(
+        method="fcl",
+        series="average",
+        growth_factor=6.0,
+        model="linear",
+        r2=0.99,
+        r2_log=0.8,
+        slope_us_per_1000=8.75,
+        log_slope_us_per_doubling=1.0,
+    )
+    res = SimpleNamespace(table1=[], settings={"vertices": (36, 3600)}, growth=[flat, line])
+    [(name, _, ours, verdict)] = paper_rows(study=res)
+    assert name == "Fig. 7 growth with n" and verdict.startswith("reproduced")
+    assert "prismbatch: no trend beyond the noise (best r² 0.40)" in ours  # not "linear fit"
+    assert "FCL: +8.75 µs / 1000 vertices (line, r² 0.99)" in ours
