@@ -14,7 +14,6 @@ Needs highspy (the ``exact`` extra) for the float stage of the reference.
 
 from __future__ import annotations
 
-import json
 import os
 import time
 from concurrent.futures import ProcessPoolExecutor
@@ -25,6 +24,7 @@ import numpy as np
 from ..collide import pair_scale_tolerance
 from ..shapes import Prism
 from .families import FAMILIES, collide_family, make_family
+from .report import write_json
 
 __all__ = ["judge_family", "run_exact_check", "markdown_table", "pair_record"]
 
@@ -195,8 +195,7 @@ def _write(results, out, n, seed):
         f.write(",".join(keys) + "\n")
         for r in results:
             f.write(",".join(str(r[k]) for k in keys) + "\n")
-    with open(os.path.join(out, "exact_check.json"), "w") as f:
-        json.dump({"seed": seed, "pairs_per_family": n, "results": results}, f, indent=1)
+    write_json(os.path.join(out, "exact_check.json"), {"seed": seed, "pairs_per_family": n, "results": results})
     wrong = []
     for r in results:
         if r["wrong_pairs"]:
@@ -221,8 +220,7 @@ def _write(results, out, n, seed):
                     ).hit[0]
                 )
                 wrong.append(pair_record(ps, k, tol, said, "see exact_check.json"))
-    with open(os.path.join(out, "exact_check_wrong.json"), "w") as f:
-        json.dump(wrong, f, indent=1)
+    write_json(os.path.join(out, "exact_check_wrong.json"), wrong)
 
 
 def _row(call, k):

@@ -130,3 +130,16 @@ def test_check_contact():
     assert check_contact(*args, [0.75, 0.75, -0.25], 1e-12) is True  # inside both
     assert check_contact(*args, [0.75, 0.75, 0.25], 1e-3) is False  # 0.25 above a
     assert check_contact(*args, [0.75, 0.75, 1e-4], 2e-4) is True  # within r of a's end face
+
+
+def test_exact_check_writes_valid_json(tmp_path):
+    # The counts are NumPy integers; the files are written with lab.report.write_json.
+    import json as json_module
+
+    from prismbatch.lab.exactcheck import run_exact_check
+
+    run_exact_check(20, families=["facing"], seed=3, out=str(tmp_path), progress=lambda *a: None)
+    doc = json_module.loads((tmp_path / "exact_check.json").read_text())
+    assert doc["pairs_per_family"] == 20 and doc["results"][0]["family"] == "facing"
+    assert doc["results"][0]["wrong"] == 0
+    assert json_module.loads((tmp_path / "exact_check_wrong.json").read_text()) == []
