@@ -24,7 +24,7 @@ import numpy as np
 from ..collide import pair_scale_tolerance
 from ..shapes import Prism
 from .families import FAMILIES, collide_family, make_family
-from .report import write_json
+from .report import write_csv, write_json, write_text
 
 __all__ = ["judge_family", "run_exact_check", "markdown_table", "pair_record"]
 
@@ -188,13 +188,9 @@ def run_exact_check(pairs_per_family, *, families=None, seed=0, processes=1, out
 
 def _write(results, out, n, seed):
     table = markdown_table(results)
-    with open(os.path.join(out, "exact_check.md"), "w") as f:
-        f.write(f"# Exact check (seed {seed}, {n} pairs per family)\n\n{table}\n")
+    write_text(os.path.join(out, "exact_check.md"), f"# Exact check (seed {seed}, {n} pairs per family)\n\n{table}\n")
     keys = [k for k in results[0] if k != "wrong_pairs"]
-    with open(os.path.join(out, "exact_check.csv"), "w") as f:
-        f.write(",".join(keys) + "\n")
-        for r in results:
-            f.write(",".join(str(r[k]) for k in keys) + "\n")
+    write_csv(os.path.join(out, "exact_check.csv"), keys, [[r[k] for k in keys] for r in results])
     write_json(os.path.join(out, "exact_check.json"), {"seed": seed, "pairs_per_family": n, "results": results})
     wrong = []
     for r in results:

@@ -9,6 +9,7 @@ tqdm) are imported only here, only when used.
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import json
 import math
@@ -25,8 +26,11 @@ __all__ = [
     "numba_threads",
     "run_metadata",
     "jsonable",
+    "atomic_open",
+    "write_text",
     "write_json",
     "write_csv",
+    "check_writable",
     "fmt",
     "pct",
     "progress",
@@ -106,25 +110,66 @@ def jsonable(x):
     return x
 
 
-def write_json(path, obj):
-    """Write ``jsonable(obj)`` to ``path`` (UTF-8, indented); returns the path as str."""
+@contextlib.contextmanager
+def atomic_open(path, mode="w", **kw):
+    """Open a temporary file beside ``path``; on success it replaces ``path`` in one rename.
+
+    An interrupt, a full disk or any exception leaves the old ``path`` (or none) and no
+    truncated file: the temporary file is removed and the exception propagates.
+    """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    with open(path, "w", encoding="utf-8") as f:
-        json.dump(jsonable(obj), f, indent=2, ensure_ascii=False)
-        f.write("\n")
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        with open(tmp, mode, **kw) as f:
+            yield f
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+
+
+def write_text(path, text):
+    """Write ``text`` (UTF-8) to ``path`` atomically; returns the path as str."""
+    with atomic_open(path, "w", encoding="utf-8") as f:
+        f.write(text)
     return str(path)
 
 
+def write_json(path, obj):
+    """Write ``jsonable(obj)`` to ``path`` (UTF-8, indented, atomically); returns the path as str."""
+    return write_text(path, json.dumps(jsonable(obj), indent=2, ensure_ascii=False) + "\n")
+
+
 def write_csv(path, header, rows):
-    """Write a CSV file with one header row; returns the path as str."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with open(path, "w", newline="", encoding="utf-8") as f:
+    """Write a CSV file with one header row (atomically); returns the path as str."""
+    with atomic_open(path, "w", newline="", encoding="utf-8") as f:
         w = csv.writer(f)
         w.writerow(list(header))
         w.writerows(rows)
     return str(path)
+
+
+def check_writable(out_dir):
+    """Create ``out_dir`` if needed and check that a file can be written there, before any work.
+
+    Raises
+    ------
+    OSError
+        The folder cannot be created or written (the message names it).
+    """
+    out = Path(out_dir)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        with atomic_open(out / ".prismbatch-write-check", "w") as f:
+            f.write("ok\n")
+        os.unlink(out / ".prismbatch-write-check")
+    except OSError as exc:
+        raise OSError(f"cannot write to --out {out_dir}: {exc.strerror or exc}") from None
+    return str(out)
 
 
 def fmt(x, spec=".3g", none="-", unit=""):
@@ -195,9 +240,10 @@ def save_figure(fig, out_dir, name):
     out.mkdir(parents=True, exist_ok=True)
     files = []
     for ext in ("png", "svg"):
-        p = str(out / f"{name}.{ext}")
-        fig.savefig(p, dpi=150 if ext == "png" else None)
-        files.append(p)
+        p = out / f"{name}.{ext}"
+        with atomic_open(p, "wb") as f:
+            fig.savefig(f, format=ext, dpi=150 if ext == "png" else None)
+        files.append(str(p))
     return files
 
 

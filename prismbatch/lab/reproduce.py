@@ -23,7 +23,7 @@ import re
 import time
 from pathlib import Path
 
-from .report import progress, run_metadata, write_json
+from .report import progress, run_metadata, write_json, write_text
 from .verdicts import paper_table
 
 __all__ = ["PARTS", "run_reproduce"]
@@ -186,5 +186,5 @@ def run_reproduce(out_dir, *, quick=False, seed=0, parts=None, progress_bar=True
         "",
     ]
     report = out / "report.md"
-    report.write_text("\n".join(head + sections) + "\n", encoding="utf-8")
+    write_text(report, "\n".join(head + sections) + "\n")
     return {"report": str(report), "json": json_path, "files": files + [str(report), json_path], "wall_s": wall}

@@ -12,7 +12,7 @@ import numpy as np
 
 from ...collide import CASES
 from ...control import CONTACT_CLASSES
-from ..report import fmt, run_metadata, write_csv, write_json
+from ..report import fmt, run_metadata, write_csv, write_json, write_text
 from .contour import contour_panels
 from .model import PAPER
 from .plots import plot_experiment
@@ -304,6 +304,5 @@ def write_experiment(res, out_dir, *, figures=True):
         },
     )
     write_json(paths["json"], meta)
-    with open(paths["markdown"], "w") as f:
-        f.write(_markdown(res, paths["figures"]))
+    write_text(paths["markdown"], _markdown(res, paths["figures"]))
     return paths

@@ -8,7 +8,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..report import fmt, write_csv, write_json
+from ..report import fmt, write_csv, write_json, write_text
 
 _COLS = (
     "family",
@@ -210,6 +210,6 @@ def write_stiff_report(report, out_dir):
         files.append(write_csv(out / f"{name}.csv", header, rows))
     files.append(write_json(out / "stiff.json", report.json()))
     md = out / "stiff.md"
-    md.write_text(report.markdown(), encoding="utf-8")
+    write_text(md, report.markdown())
     files.append(str(md))
     return files

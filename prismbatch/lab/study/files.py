@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ...collide import CASES
-from ..report import run_metadata, write_csv, write_json
+from ..report import run_metadata, write_csv, write_json, write_text
 from .constants import METHODS, PAPER_GROWTH_MS_PER_1000, PAPER_SOURCE, PAPER_TABLE1_MS, PAPER_VERTICES
 from .plots import plot_study
 from .report import markdown
@@ -166,6 +166,5 @@ def write_study(result, out_dir, *, figures=True):
         },
     )
     write_json(paths["json"], meta)
-    with open(paths["markdown"], "w", encoding="utf-8") as fh:
-        fh.write(markdown(result, paths))
+    write_text(paths["markdown"], markdown(result, paths))
     return paths

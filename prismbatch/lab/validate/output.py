@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..report import fmt
+from ..report import fmt, write_text
 from .config import DISTRIBUTION_NAMES, NC
 
 #: Columns of validation_summary.csv (one row per distribution and a total row).
@@ -365,7 +365,7 @@ def write_validation(result, out_dir):
     out.mkdir(parents=True, exist_ok=True)
     paths = {}
     md = out / "validation.md"
-    md.write_text(_markdown(result), encoding="utf-8")
+    write_text(md, _markdown(result))
     paths["markdown"] = str(md)
     paths["summary_csv"] = write_csv(out / "validation_summary.csv", SUMMARY_HEADER, _summary_rows(result))
     paths["cases_csv"] = write_csv(out / "validation_cases.csv", CASES_HEADER, _case_rows(result))
@@ -402,6 +402,6 @@ def write_validation(result, out_dir):
             fname = name if name.startswith("stiff") else f"stiff_{name}"
             paths["stiff"].append(write_csv(out / f"{fname}.csv", header, rows))
         md = out / STIFF_MARKDOWN
-        md.write_text(result.stiff.markdown(), encoding="utf-8")
+        write_text(md, result.stiff.markdown())
         paths["stiff"].append(str(md))
     return paths

@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from ..report import fmt, run_metadata, write_csv, write_json
+from ..report import fmt, run_metadata, write_csv, write_json, write_text
 from .plots import plot_work_precision
 from .result import WorkPrecisionResult
 from .run import STAT_KEYS
@@ -186,7 +186,7 @@ def write_work_precision(result, out_dir, *, figures=True):
     )
     paths["json"] = write_json(out / "workprec.json", meta)
     md = out / "workprec.md"
-    md.write_text(_markdown(result, fig_files), encoding="utf-8")
+    write_text(md, _markdown(result, fig_files))
     paths["markdown"] = str(md)
     paths["figures"] = fig_files
     return paths
