@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
 import textwrap
 
@@ -29,6 +30,17 @@ class _LabChoices:
 
     def __contains__(self, x):
         return x in self._values()
+
+
+def _lab_command(name):
+    """The runner of subcommand ``name`` in :mod:`prismbatch.lab.commands`, imported when it runs."""
+
+    def run(args):
+        import importlib
+
+        return getattr(importlib.import_module(".lab.commands", __package__), f"{name}_command")(args)
+
+    return run
 
 
 def _demo(args):
@@ -62,37 +74,6 @@ def _demo(args):
     return 0
 
 
-def _experiment(args):
-    from .lab.experiment import format_summary, run_experiment, write_experiment
-
-    res = run_experiment(
-        args.prism,
-        vertices=args.vertices,
-        plant=args.plant,
-        duration=args.duration,
-        dt=args.dt,
-        max_speed=args.max_speed,
-        mass=args.mass,
-        damping=args.damping,
-        detach_tol=args.detach_tol,
-        fcl=not args.no_fcl,
-    )
-    for line in format_summary(res):
-        print(line)
-    if args.out is None:
-        print("(no files written: pass --out DIR for the trajectory CSV, JSON metadata, Markdown summary and figures)")
-        return 0
-    try:
-        paths = write_experiment(res, args.out, figures=not args.no_figures)
-    except ImportError as exc:
-        print(f"prismbatch: error: {exc} (or pass --no-figures)", file=sys.stderr)
-        return 2
-    print(f"wrote {paths['csv']}, {paths['json']}, {paths['markdown']}")
-    for f in paths["figures"]:
-        print(f"wrote {f}")
-    return 0
-
-
 def _int_list(text):
     """Parse '36,180,360' -> (36, 180, 360) for argparse."""
     try:
@@ -108,108 +89,6 @@ def _name_list(text):
     return tuple(v.strip() for v in text.split(",") if v.strip())
 
 
-def _print_paths(paths):
-    for key, v in paths.items():
-        for f in v if isinstance(v, (list, tuple)) else [v]:
-            print(f"wrote {f}")
-
-
-def _study(args):
-    from .lab.study import format_study, run_study, write_study
-
-    res = run_study(
-        vertices=args.vertices,
-        cases=args.cases or tuple(range(1, 12)),
-        poses_per_case=args.poses,
-        repeats=args.repeats,
-        batch_pairs=args.batch_pairs,
-        peers=args.peers,
-        seed=args.seed,
-        quick=args.quick,
-        progress=_show_progress(args),
-        lp_checks=args.lp_checks,
-        table_vertices=args.table_vertices,
-    )
-    for line in format_study(res):
-        print(line)
-    if args.out is not None:
-        _print_paths(write_study(res, args.out, figures=not args.no_figures))
-    return 0
-
-
-def _validate(args):
-    from .lab.validate import format_validation, validate, write_validation
-
-    if args.fcl_fraction is not None and not args.fcl:
-        raise ValueError("--fcl-fraction and --no-fcl contradict each other")
-    stiff = "quick" if args.stiff_quick else bool(args.stiff)
-    dists = tuple(d for d in args.distributions if d != "stiff")
-    if len(dists) < len(args.distributions):  # "stiff" names the stiff suite, which has its own generators
-        stiff = stiff or True
-    if not dists:
-        raise ValueError(
-            "--distributions needs at least one of facing, free, near-contact, degenerate "
-            "(stiff adds the stiff suite to them)"
-        )
-    shapes = args.shapes[0] if len(args.shapes) == 1 else args.shapes
-    res = validate(
-        args.pairs,
-        distributions=dists,
-        shapes=shapes,
-        vertices=args.vertices,
-        seed=args.seed,
-        chunk_size=args.chunk_size,
-        dtype=args.dtype,
-        rtol=args.rtol,
-        atol=args.atol,
-        fcl=args.fcl_fraction if args.fcl_fraction is not None else args.fcl,
-        lp_samples=args.lp_samples,
-        contact_check=not args.no_contact_check,
-        max_band_records=args.max_band_records,
-        stiff=stiff,
-        scheduler=args.scheduler,
-        workers=args.workers,
-        progress=_show_progress(args),
-    )
-    for line in format_validation(res):
-        print(line)
-    if args.out is not None:
-        _print_paths(write_validation(res, args.out))
-    else:
-        print("(no files written: pass --out DIR for the report, CSV tables, JSON metadata and the replay file)")
-    return 0 if res.ok else 1
-
-
-def _workprec(args):
-    from .lab.workprec import format_work_precision, run_work_precision, write_work_precision
-
-    res = run_work_precision(
-        vertices=args.vertices,
-        n_poses=args.poses,
-        radius=args.radius,
-        repeats=args.repeats,
-        seed=args.seed,
-        quick=args.quick,
-        progress=_show_progress(args),
-        fcl=args.fcl,
-    )
-    for line in format_work_precision(res):
-        print(line)
-    if args.out is not None:
-        _print_paths(write_work_precision(res, args.out, figures=not args.no_figures))
-    return 0
-
-
-def _reproduce(args):
-    from .lab.reproduce import run_reproduce
-
-    res = run_reproduce(
-        args.out, quick=args.quick, seed=args.seed, parts=args.parts or None, progress_bar=_show_progress(args)
-    )
-    print(f"wrote {len(res['files'])} files to {args.out}; report: {res['report']}")
-    return 0
-
-
 def _add_output_options(p, *, figures=True, what="CSV, JSON, Markdown and figures"):
     """--seed, --out, --no-figures and --no-progress, shared by the result-writing commands."""
     p.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
@@ -219,19 +98,13 @@ def _add_output_options(p, *, figures=True, what="CSV, JSON, Markdown and figure
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
-def _show_progress(args):
-    return not args.no_progress and sys.stderr.isatty()
-
-
-def _replay(args):
-    from .lab.replay import replay
-
-    try:
-        replay(args.file, indices=args.record)
-    except OSError as exc:
-        print(f"prismbatch: error: cannot read {args.file}: {exc.strerror or exc}", file=sys.stderr)
-        return 2
-    return 0
+def _add_resume_option(p):
+    p.add_argument(
+        "--resume",
+        action="store_true",
+        help="continue a run stopped by Ctrl-C, SIGTERM or a crash: the same command and --out load "
+        "what it finished from DIR/checkpoint; the results equal an uninterrupted run's",
+    )
 
 
 def build_parser():
@@ -329,7 +202,7 @@ def _experiment_parser(sub):
     )
     p.add_argument("--no-figures", action="store_true", help="with --out: skip the figures (no matplotlib needed)")
     p.add_argument("--no-fcl", action="store_true", help="skip the python-fcl timing")
-    p.set_defaults(func=_experiment)
+    p.set_defaults(func=_lab_command("experiment"))
 
 
 def _validate_parser(sub):
@@ -420,10 +293,12 @@ def _validate_parser(sub):
         "--out",
         default=None,
         metavar="DIR",
-        help="write validation.md, CSV tables, validation.json and validation_replay.json to DIR",
+        help="write validation.md, CSV tables, validation.json and validation_replay.json to DIR; "
+        "finished chunks are saved there as they complete (DIR/checkpoint, removed at the end)",
     )
+    _add_resume_option(p)
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
-    p.set_defaults(func=_validate)
+    p.set_defaults(func=_lab_command("validate"))
 
 
 def _study_parser(sub):
@@ -475,7 +350,7 @@ def _study_parser(sub):
         help="disagreements per cell arbitrated by the exact LP (default: 10)",
     )
     _add_output_options(p)
-    p.set_defaults(func=_study)
+    p.set_defaults(func=_lab_command("study"))
 
 
 def _workprec_parser(sub):
@@ -502,7 +377,7 @@ def _workprec_parser(sub):
     p.add_argument("--repeats", type=int, default=None, metavar="R", help="timed passes (default: 3)")
     p.add_argument("--no-fcl", dest="fcl", action="store_false", help="skip python-fcl (its rows stay, as NaN)")
     _add_output_options(p)
-    p.set_defaults(func=_workprec)
+    p.set_defaults(func=_lab_command("workprec"))
 
 
 def _reproduce_parser(sub):
@@ -527,7 +402,7 @@ def _reproduce_parser(sub):
     )
     p.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
-    p.set_defaults(func=_reproduce)
+    p.set_defaults(func=_lab_command("reproduce"))
 
 
 def _replay_parser(sub):
@@ -548,7 +423,7 @@ def _replay_parser(sub):
         metavar="I",
         help="only record I (0-based; repeat for several)",
     )
-    p.set_defaults(func=_replay)
+    p.set_defaults(func=_lab_command("replay"))
 
 
 def main(argv=None):
@@ -558,11 +433,16 @@ def main(argv=None):
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
+    previous = _stop_on_sigterm()
     try:
         if getattr(args, "threads", 0) > 1:
             import numba
 
             numba.set_num_threads(args.threads)  # raises ValueError above the available threads
+        if getattr(args, "out", None) is not None:
+            from .lab.report import check_writable
+
+            check_writable(args.out)  # before any work, not after an hour of it
         return args.func(args)
     except (ValueError, TypeError) as exc:
         print(f"prismbatch: error: {exc}", file=sys.stderr)
@@ -573,9 +453,37 @@ def main(argv=None):
     except OSError as exc:  # a file could not be read or written (a full disk, no permission)
         print(f"prismbatch: error: {exc}", file=sys.stderr)
         return 3
-    except KeyboardInterrupt:
-        print("prismbatch: interrupted", file=sys.stderr)
+    except KeyboardInterrupt as exc:
+        print(f"prismbatch: {_interrupted(exc)}", file=sys.stderr)
         return 130
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def _stop_on_sigterm():
+    """SIGTERM (a batch system's stop, ``kill``) stops a run as Ctrl-C does; returns the old handler."""
+
+    def stop(signum, frame):
+        raise KeyboardInterrupt
+
+    try:
+        return signal.signal(signal.SIGTERM, stop)
+    except ValueError:  # not the main thread (main() called from a thread): leave SIGTERM alone
+        return None
+
+
+def _interrupted(exc):
+    """The one-line message of an interrupt: what was finished and kept, and how to continue."""
+    from .lab.checkpoint import Interrupted
+
+    if not isinstance(exc, Interrupted):
+        return "interrupted"
+    files = getattr(exc, "files", None) or {}
+    if not files:
+        return f"{exc}; nothing written (no --out)"
+    where = files.get("markdown") or next(iter(files.values()))
+    return f"{exc}; partial report {where}; the same command with --resume continues"
 
 
 #: The extra that installs a module the lab imports when a subcommand needs it.

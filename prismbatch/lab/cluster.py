@@ -7,7 +7,9 @@ the merged results equal the in-process run's. Dask is imported only here.
 
 from __future__ import annotations
 
+import contextlib
 import os
+import signal
 
 __all__ = ["run_chunks", "DASK_MISSING"]
 
@@ -72,14 +74,17 @@ def run_chunks(config, specs, done, *, scheduler=None, workers=None):
     if scheduler is not None:
         client = distributed.Client(scheduler)
     else:
-        cluster = distributed.LocalCluster(
-            n_workers=int(workers),
-            threads_per_worker=1,
-            processes=True,
-            dashboard_address=None,
-            silence_logs=logging.ERROR,
-        )
+        with _workers_ignore_ctrl_c():
+            cluster = distributed.LocalCluster(
+                n_workers=int(workers),
+                threads_per_worker=1,
+                processes=True,
+                dashboard_address=None,
+                # task errors still reach the client; a stop must not print worker tracebacks
+                silence_logs=logging.CRITICAL,
+            )
         client = distributed.Client(cluster)
+    futures = {}
     try:
         if scheduler is not None:
             client.wait_for_workers(1)
@@ -94,7 +99,6 @@ def run_chunks(config, specs, done, *, scheduler=None, workers=None):
         # each worker loads (or compiles) the kernels before any chunk runs there
         warmup = client.run(warm, config["dtype"])
         threads = min(per_worker.values())
-        futures = {}
         for spec in specs:
             d, first, n = spec
             fut = client.submit(
@@ -116,7 +120,30 @@ def run_chunks(config, specs, done, *, scheduler=None, workers=None):
             "numba_threads": threads,
             "worker_warmup_s": {str(a): float(s) for a, s in warmup.items()},
         }
+    except KeyboardInterrupt:
+        # Stop cleanly: no task keeps running on the cluster, the local workers are shut down
+        # (the finally below) instead of dying with the terminal's Ctrl-C.
+        client.cancel(list(futures))
+        raise
     finally:
         client.close()
         if cluster is not None:
             cluster.close()
+
+
+@contextlib.contextmanager
+def _workers_ignore_ctrl_c():
+    """Start worker processes with SIGINT ignored (they inherit it), then restore it here.
+
+    Ctrl-C in a terminal reaches the whole process group; the client stops the workers itself,
+    so they must not die half-way with their semaphores and files left behind.
+    """
+    try:
+        old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    except ValueError:  # not the main thread: signals are not ours to change
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old)

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import time
 
+from ..checkpoint import Checkpoint, Interrupted
 from ..checks import is_int
 from .blocks import run_chunk, warm
 from .config import block_len, make_config, n_blocks
@@ -48,26 +49,45 @@ def _require_extras(cfg):
         import_fcl()
 
 
-def _run_chunks(cfg, specs, merger, scheduler, workers, progress):
-    """Run every chunk (in-process or on Dask) into ``merger``; returns the execution dict."""
+def _unit(spec):
+    d, first, n = spec
+    return f"{d}-{first}-{n}"
+
+
+def _run_chunks(cfg, specs, merger, scheduler, workers, progress, ckpt):
+    """Run every chunk (in-process or on Dask) into ``merger``; returns the execution dict.
+
+    With a checkpoint, chunks it holds are loaded instead of run and each new chunk is saved
+    as soon as it is finished.
+    """
     from ..report import numba_threads
     from ..report import progress as _progress
 
     total = cfg["n_pairs"] * len(cfg["distributions"])
     with _progress(total, enabled=progress, unit="pair", desc="validate") as bar:
+
+        def done(spec, chunk, loaded=False):
+            if ckpt is not None and not loaded:
+                ckpt.save(_unit(spec), chunk)
+            merger.add(chunk)
+            bar.update(_spec_pairs(cfg, spec))
+
+        todo = []
+        for spec in specs:
+            chunk = ckpt.load(_unit(spec)) if ckpt is not None else None
+            if chunk is None:
+                todo.append(spec)
+            else:
+                done(spec, chunk, loaded=True)
         if scheduler is None and workers is None:
             execution = {"scheduler": "in-process", "workers": 1, "numba_threads": numba_threads()}
-            for spec in specs:
-                merger.add(run_chunk(cfg, *spec))
-                bar.update(_spec_pairs(cfg, spec))
+            for spec in todo:
+                done(spec, run_chunk(cfg, *spec))
         else:
             from ..cluster import run_chunks
 
-            def done(spec, chunk):
-                merger.add(chunk)
-                bar.update(_spec_pairs(cfg, spec))
-
-            execution = run_chunks(cfg, specs, done, scheduler=scheduler, workers=workers)
+            execution = run_chunks(cfg, todo, done, scheduler=scheduler, workers=workers)
+    execution["chunks_resumed"] = len(specs) - len(todo)
     return execution
 
 
@@ -90,6 +110,8 @@ def validate(
     scheduler=None,
     workers=None,
     progress=True,
+    checkpoint_dir=None,
+    resume=False,
 ):
     """Monte Carlo validation of prismbatch against python-fcl and the exact LP.
 
@@ -142,6 +164,13 @@ def validate(
         ``scheduler`` is given). Without either, runs in-process.
     progress : bool, optional
         Progress bar over pairs (tqdm, when installed).
+    checkpoint_dir : str or path-like, optional
+        Save every finished chunk under ``checkpoint_dir/checkpoint/validate``
+        (:class:`~prismbatch.lab.checkpoint.Checkpoint`); :func:`write_validation`
+        removes it once the report is written.
+    resume : bool, optional
+        With ``checkpoint_dir``: load the chunks an earlier run with the same
+        settings finished there; the counts equal an uninterrupted run's.
 
     Returns
     -------
@@ -154,6 +183,9 @@ def validate(
     ImportError
         A needed optional dependency is missing (scipy for the LP,
         python-fcl, dask); the message names the extra to install.
+    prismbatch.lab.checkpoint.Interrupted
+        SIGINT (or SIGTERM, turned into SIGINT by the CLI) during the run; its
+        ``result`` is the partial :class:`ValidationResult` of the chunks finished.
     """
     cfg = make_config(
         n_pairs,
@@ -174,14 +206,38 @@ def validate(
     t_start = time.perf_counter()
     compile_time = warm(cfg["dtype"])
     specs = _chunk_specs(cfg, chunk_size)
+    ckpt = None
+    if checkpoint_dir is not None:
+        ckpt = Checkpoint(checkpoint_dir, "validate", {**cfg, "chunk_size": chunk_size}, resume=resume)
     merger = Merger(cfg)
-    execution = _run_chunks(cfg, specs, merger, scheduler, workers, progress)
-    wall = time.perf_counter() - t_start  # the Monte Carlo run; the stiff suite reports its own time
-    rep = None
+
+    def result(execution, rep=None, partial=None):
+        wall = time.perf_counter() - t_start  # the Monte Carlo run; the stiff suite reports its own time
+        return ValidationResult(
+            cfg,
+            merger.counts,
+            merger.times,
+            merger.records,
+            merger.total,
+            compile_time,
+            wall,
+            execution,
+            rep,
+            partial=partial,
+            checkpoint=ckpt,
+        )
+
+    try:
+        execution = _run_chunks(cfg, specs, merger, scheduler, workers, progress, ckpt)
+    except KeyboardInterrupt:
+        done = sum(c["pairs"] for c in merger.counts.values())
+        total = cfg["n_pairs"] * len(cfg["distributions"])
+        exc = Interrupted(done, total, "pair")
+        exc.result = result({"scheduler": "interrupted"}, partial={"pairs_done": done, "pairs_total": total})
+        raise exc from None
+    res = result(execution)
     if stiff:
         from ..stiff import run_stiff_suite
 
-        rep = run_stiff_suite(quick=stiff == "quick", seed=cfg["seed"], progress=progress)
-    return ValidationResult(
-        cfg, merger.counts, merger.times, merger.records, merger.total, compile_time, wall, execution, rep
-    )
+        res.stiff = run_stiff_suite(quick=stiff == "quick", seed=cfg["seed"], progress=progress)
+    return res

@@ -79,6 +79,10 @@ class ValidationResult:
         Scheduler, workers and thread counts.
     stiff : object or None
         The stiff suite's report (``prismbatch.lab.stiff``) when requested.
+    partial : dict or None
+        For a run stopped early: ``pairs_done`` and ``pairs_total``.
+    checkpoint : Checkpoint or None
+        Where finished chunks were saved (removed once the full report is written).
     """
 
     config: dict
@@ -90,6 +94,8 @@ class ValidationResult:
     wall_time: float
     execution: dict
     stiff: object = None
+    partial: dict = None
+    checkpoint: object = None
 
     def totals(self):
         """Counters summed over the distributions."""

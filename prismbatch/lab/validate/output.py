@@ -221,6 +221,16 @@ def format_validation(result):
 def _verdict(result):
     """The run's one-line verdict; a run that compared against no reference says so."""
     cfg = result.config
+    prefix = ""
+    if result.partial is not None:
+        p = result.partial
+        prefix = (
+            f"PARTIAL ({p['pairs_done']:,} of {p['pairs_total']:,} pairs; the same command with --resume continues): "
+        )
+    return prefix + _verdict_of_pairs(result, cfg)
+
+
+def _verdict_of_pairs(result, cfg):
     if not result.ok:
         return "FAILURES (see the records)"
     if cfg["fcl_fraction"] == 0.0 and cfg["lp_samples"] == 0:
@@ -379,6 +389,7 @@ def write_validation(result, out_dir):
         compile_time_s=result.compile_time,
         wall_time_s=result.wall_time,
         ok=result.ok,
+        partial=result.partial,
     )
     paths["json"] = write_json(
         out / "validation.json",
@@ -404,4 +415,6 @@ def write_validation(result, out_dir):
         md = out / STIFF_MARKDOWN
         write_text(md, result.stiff.markdown())
         paths["stiff"].append(str(md))
+    if result.partial is None and result.checkpoint is not None:
+        result.checkpoint.remove()  # every file is written: the finished chunks are no longer needed
     return paths

@@ -1,0 +1,108 @@
+"""Checkpoints of long runs: each finished unit of work is one file in the output folder.
+
+A run that stops (Ctrl-C, SIGTERM, a crash, a lost machine) keeps every unit it finished;
+the same command with ``--resume`` and the same ``--out`` loads them instead of recomputing
+them. Because the units are deterministic functions of the run's settings (validation
+chunks are regenerated from the seed), a resumed run's counts equal an uninterrupted one's.
+
+Layout: ``OUT/checkpoint/<command>/run.json`` (the settings that must match) and one
+``<unit>.pickle`` per finished unit, each written atomically (:func:`~prismbatch.lab.report.atomic_open`).
+The folder is removed once the run's own files are written. The pickles are the run's own
+output, read back by the same user: they are not meant to be exchanged.
+"""
+
+from __future__ import annotations
+
+import json
+import pickle
+import shutil
+from pathlib import Path
+
+from .report import atomic_open, jsonable, write_json
+
+__all__ = ["Checkpoint", "Interrupted"]
+
+
+class Interrupted(KeyboardInterrupt):
+    """A run stopped by SIGINT or SIGTERM after saving what it finished.
+
+    Attributes
+    ----------
+    done, total : int
+        Units of work finished (including any loaded on resume) and in all.
+    unit : str
+        What a unit is ("pair", "vertex count", ...), for the message.
+    files : dict
+        The partial report's files, when one was written.
+    """
+
+    def __init__(self, done, total, unit, files=None):
+        super().__init__(f"interrupted after {done:,} of {total:,} {unit}s")
+        self.done, self.total, self.unit, self.files = done, total, unit, files or {}
+
+
+class Checkpoint:
+    """The finished units of one run in ``out_dir/checkpoint/<command>/``.
+
+    Parameters
+    ----------
+    out_dir : str or path-like
+        The run's output folder (``--out``).
+    command : str
+        The command's name (one folder per command, so that ``study`` and ``validate``
+        can share an output folder).
+    settings : dict
+        Everything the units depend on; a resumed run must have the same.
+    resume : bool
+        Load the units a previous run with the same settings finished. Without it, an old
+        checkpoint is discarded and the run starts from scratch.
+
+    Raises
+    ------
+    ValueError
+        ``resume`` with a checkpoint written by a run with other settings (the message names
+        the settings that differ).
+    """
+
+    def __init__(self, out_dir, command, settings, *, resume=False):
+        self.dir = Path(out_dir) / "checkpoint" / command
+        self.settings = jsonable(settings)
+        self.loaded = 0
+        manifest = self.dir / "run.json"
+        if resume and manifest.exists():
+            with open(manifest, encoding="utf-8") as f:
+                old = json.load(f)["settings"]
+            differ = sorted(k for k in set(old) | set(self.settings) if old.get(k) != self.settings.get(k))
+            if differ:
+                raise ValueError(
+                    f"--resume: the checkpoint in {self.dir} was written with other settings "
+                    f"({', '.join(differ)}); run the same command, or drop --resume to start again"
+                )
+        elif self.dir.exists():
+            shutil.rmtree(self.dir)
+        write_json(manifest, {"command": command, "settings": self.settings})
+
+    def _path(self, unit):
+        return self.dir / f"{unit}.pickle"
+
+    def load(self, unit):
+        """The saved result of ``unit``, or None when it was not finished."""
+        p = self._path(unit)
+        if not p.exists():
+            return None
+        with open(p, "rb") as f:
+            out = pickle.load(f)
+        self.loaded += 1
+        return out
+
+    def save(self, unit, result):
+        """Save the result of a finished ``unit`` (atomically)."""
+        with atomic_open(self._path(unit), "wb") as f:
+            pickle.dump(result, f, protocol=pickle.HIGHEST_PROTOCOL)
+
+    def remove(self):
+        """Delete the checkpoint (the run finished and wrote its files)."""
+        shutil.rmtree(self.dir, ignore_errors=True)
+        parent = self.dir.parent
+        if parent.exists() and not any(parent.iterdir()):
+            parent.rmdir()
