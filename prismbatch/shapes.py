@@ -18,6 +18,7 @@ import numpy as np
 
 from ._kernels.batch import pack, unpack
 from ._kernels.planar import edge_search_tables
+from .checks import check_memory, format_bytes
 from .config import MAX_VERTICES, MIN_RELATIVE_AREA, MIN_RELATIVE_EDGE, SUPPORTED_RANGE
 from .poses import real_scalar
 
@@ -28,6 +29,10 @@ _TWO_PI = 2.0 * np.pi
 # the product of the edge lengths) and still count as straight: nearly
 # collinear consecutive vertices are legal, dents are not.
 _CONVEX_RTOL = 1e-12
+# Peak bytes a vertex costs from building a prism to a Collider's tables of it
+# (tracemalloc: ~130 B to build and check the polygon, ~170 B once its PrismSet
+# arrays and one packed copy exist; float32 compute packs a second copy).
+_BYTES_PER_VERTEX = 200
 
 
 def validate_polygon(xy, *, name="polygon"):
@@ -125,6 +130,16 @@ def validate_polygon(xy, *, name="polygon"):
     return arr
 
 
+def _vertex_count(xy):
+    """Vertices of a polygon argument, read without copying it (0 if it has no length)."""
+    if isinstance(xy, Prism):
+        return xy.n_vertices
+    try:
+        return len(xy)
+    except TypeError:  # not a sequence: validate_polygon says what is wrong with it
+        return 0
+
+
 def _exact_area2(xy):
     """Twice the signed area in exact rational arithmetic (floats are exact rationals)."""
     from fractions import Fraction
@@ -219,6 +234,8 @@ class Prism:
     """
 
     def __init__(self, xy, *, name="prism"):
+        n = _vertex_count(xy)
+        check_memory(n * _BYTES_PER_VERTEX, f"{name} of {n:,} vertices")
         self.xy = validate_polygon(xy, name=name)
         self.xy.flags.writeable = False
         self.centre = _centroid(self.xy)
@@ -238,11 +255,21 @@ class Prism:
             Polar angle of vertex 0 in radians.
         centre : (2,) array_like, optional
             Centre in the local frame.
+
+        Raises
+        ------
+        ValueError
+            ``n`` outside [3, :data:`~prismbatch.config.MAX_VERTICES`], or more
+            vertices than the memory available holds (about 200 bytes a vertex
+            once a Collider has built its tables).
         """
         if isinstance(n, (bool, np.bool_)) or not isinstance(n, (int, np.integer)):
             raise TypeError(f"Prism.regular: n must be an integer, got {type(n).__name__} {n!r}")
         if not 3 <= n <= MAX_VERTICES:
-            raise ValueError(f"Prism.regular: n must be in [3, {MAX_VERTICES:,}], got {n}")
+            big = n > MAX_VERTICES  # say why the limit is there
+            need = f" (it would need about {format_bytes(n * _BYTES_PER_VERTEX)} of memory)" if big else ""
+            raise ValueError(f"Prism.regular: n must be in [3, {MAX_VERTICES:,}], got {n}{need}")
+        check_memory(n * _BYTES_PER_VERTEX, f"Prism.regular({n})")
         radius = real_scalar(radius, "Prism.regular: radius", 5e-324, 1.7976931348623157e308)
         phase = real_scalar(phase, "Prism.regular: phase", -1e6, 1e6)
         c = np.asarray(centre)
@@ -267,7 +294,9 @@ class PrismSet:
     Parameters
     ----------
     polygons : sequence of array_like or Prism
-        End-face polygons (each ``(n_k, 2)``) or :class:`Prism` objects.
+        End-face polygons (each ``(n_k, 2)``) or :class:`Prism` objects. A
+        ValueError, before anything is built, if their vertices together need
+        more memory than is available (about 200 bytes a vertex).
 
     Attributes
     ----------
@@ -296,8 +325,9 @@ class PrismSet:
     def __init__(self, polygons):
         if isinstance(polygons, np.ndarray) and polygons.ndim == 2:
             raise TypeError("PrismSet takes a sequence of polygons; wrap a single polygon as [xy] or use Prism")
-        if isinstance(polygons, Prism):
-            polygons = [polygons]
+        polygons = [polygons] if isinstance(polygons, Prism) else list(polygons)
+        total = sum(_vertex_count(p) for p in polygons)
+        check_memory(total * _BYTES_PER_VERTEX, f"PrismSet of {len(polygons):,} polygons, {total:,} vertices")
         prisms = []
         for k, p in enumerate(polygons):
             prisms.append(p if isinstance(p, Prism) else Prism(p, name=f"polygon {k}"))
