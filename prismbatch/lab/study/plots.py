@@ -4,12 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..report import fmt, legend_below, new_figure, pct, save_figure
+from ..report import cpu_name, fmt, legend_below, new_figure, pct, save_figure
 from .analysis import average_series, growth_model_text, growth_row
-from .constants import PAPER_GROWTH_MS_PER_1000, PEERS
+from .constants import PAPER_GROWTH_MS_PER_1000, PAPER_TABLE_VERTICES, PEERS
 
 _SHORT = {"fcl": "FCL", "coal": "coal"}
 _METHOD_STYLE = {"prismbatch": ("C0", "o"), "prismbatch_batch1": ("C9", "v"), "fcl": ("C3", "s"), "coal": ("C2", "^")}
+# One marker per case 1-11: cases whose colours are close (1 and 11) still differ.
+_CASE_MARKERS = "osD^v<>phX*"
 
 
 def _case_colour(case):
@@ -18,9 +20,22 @@ def _case_colour(case):
     return matplotlib.colormaps["tab20"]((2 * (case - 1)) % 20 + (1 if case > 10 else 0))
 
 
+def _case_dodge(cases, vertices):
+    """A factor per case that shifts its points along log n, so that the cases' bars at one n sit side by side.
+
+    The shifts spread evenly over a band of half the smallest gap between two
+    vertex counts (in decades, at most 0.25), centred on n: bands of
+    neighbouring counts never meet.
+    """
+    logs = np.log10(sorted(set(vertices)))
+    band = min(0.25, 0.5 * float(np.min(np.diff(logs)))) if len(logs) > 1 else 0.25
+    shifts = np.linspace(-band / 2, band / 2, len(cases)) if len(cases) > 1 else [0.0]
+    return {case: 10.0**d for case, d in zip(cases, shifts)}
+
+
 def _log_axes(ax, x=True, y=True):
     """Log scales with plain numbers as tick labels (5, 20, 1000 rather than 5x10^0)."""
-    from matplotlib.ticker import FuncFormatter, LogLocator
+    from matplotlib.ticker import FuncFormatter, LogFormatter, LogLocator
 
     fmt = FuncFormatter(lambda v, _: f"{v:,.0f}" if v >= 1 and v == int(v) else f"{v:g}")
     for on, axis, setter in ((x, ax.xaxis, ax.set_xscale), (y, ax.yaxis, ax.set_yscale)):
@@ -32,6 +47,8 @@ def _log_axes(ax, x=True, y=True):
             if lo > 0 and hi / lo < 30:
                 axis.set_minor_locator(LogLocator(subs=(2.0, 5.0)))
                 axis.set_minor_formatter(fmt)
+            else:  # the minor ticks matplotlib labels on a short range: 60, not 6x10^1
+                axis.set_minor_formatter(LogFormatter(labelOnlyBase=False))
 
 
 def _vertex_axes(ax, ylabel):
@@ -49,16 +66,37 @@ def _min_max_bars(rows, median, lo, hi):
 
 
 def _per_case_axes(ax, res, method):
-    for case in res.settings["cases"]:
+    """Each case's median time per query against n, with min-max bars, the cases side by side at each n."""
+    from matplotlib.ticker import NullLocator
+
+    cases = res.settings["cases"]
+    dodge = _case_dodge(cases, res.settings["vertices"])
+    for case in cases:
         rows = sorted(
             (r for r in res.latency if r["method"] == method and r["case"] == case), key=lambda r: r["vertices"]
         )
         if not rows:
             continue
-        x = [r["vertices"] for r in rows]
+        x = np.array([r["vertices"] for r in rows], dtype=float) * dodge[case]
         y, err = _min_max_bars(rows, "median_us", "min_us", "max_us")
-        ax.errorbar(x, y, yerr=err, marker="o", ms=3, lw=1.2, capsize=2, color=_case_colour(case), label=f"case {case}")
+        ax.errorbar(
+            x,
+            y,
+            yerr=err,
+            marker=_CASE_MARKERS[(case - 1) % len(_CASE_MARKERS)],
+            ms=4,
+            lw=0.8,
+            elinewidth=0.9,
+            capsize=1.5,
+            capthick=0.6,
+            color=_case_colour(case),
+            label=f"case {case}",
+        )
     _vertex_axes(ax, "time per query (µs)")
+    ns = sorted(set(res.settings["vertices"]))
+    ax.set_xticks(ns, [f"{n:,}" for n in ns])  # a tick (and grid line) at the centre of each group
+    ax.xaxis.set_minor_locator(NullLocator())
+    ax.set_xlabel("end-face vertices n (each prism)\nthe cases' points sit side by side about each n")
     ax.set_title(res.methods.get(method, method), fontsize=10)
 
 
@@ -117,6 +155,7 @@ def _fig7c(res, out_dir):
     ax = fig.add_subplot()
     avg = next((r["cases"] for r in res.growth if r["series"] == "average"), "")
     nn = np.geomspace(min(s["vertices"]), max(s["vertices"]), 200)
+    fitted = False
     for m in res.methods:
         pts = average_series(res, m, [int(c) for c in avg.split(",") if c])
         if not pts:
@@ -130,9 +169,11 @@ def _fig7c(res, out_dir):
             else:
                 fit = g["intercept_us"] + g["slope_us_per_1000"] * nn / 1000.0
             ax.plot(nn[fit > 0], fit[fit > 0], "--", color=col, lw=1)
+            fitted = True
         ax.plot(list(pts), list(pts.values()), marker=mk, color=col, lw=0, ms=6, label=lab)
     pg = PAPER_GROWTH_MS_PER_1000
-    ax.plot([], [], "--", color="grey", label="least-squares fit, t = a + b n or t = a + b log2 n (the better r²)")
+    if fitted:  # a legend key for the dashed lines, only when one is drawn
+        ax.plot([], [], "--", color="grey", label="least-squares fit, t = a + b n or t = a + b log2 n (the better r²)")
     _vertex_axes(ax, "mean time per query over cases (µs)")
     ax.set_title(
         f"Fig. 7c: average over cases {avg}, single-query latency\n"
@@ -144,17 +185,8 @@ def _fig7c(res, out_dir):
     return save_figure(fig, out_dir, "study_fig7c_average")
 
 
-def _table1_bars(res, out_dir):
-    rows = [r for r in res.table1 if isinstance(r["case"], int)]
-    fig = new_figure(figsize=(9.0, 5.0), layout="constrained")
-    ax = fig.add_subplot()
-    bars = [
-        ("prismbatch_us", res.methods.get("prismbatch"), "C0", None),
-        ("fcl_us", res.methods.get("fcl"), "C3", None),
-        ("coal_us", res.methods.get("coal"), "C2", None),
-        ("paper_projection_us", "paper: projection (i3 3.3 GHz)", "C0", "//"),
-        ("paper_swift_us", "paper: SWIFT (i3 3.3 GHz)", "C3", "//"),
-    ]
+def _table1_panel(ax, rows, bars, title):
+    """Grouped bars of ``bars`` ((key, label, colour, hatch), missing labels dropped) per case of ``rows``."""
     bars = [b for b in bars if b[1] is not None]
     w = 0.8 / len(bars)
     x = np.arange(len(rows))
@@ -170,21 +202,70 @@ def _table1_bars(res, out_dir):
             hatch=hatch,
             lw=1,
         )
-    for i, r in enumerate(rows):
-        if r["missing"]:
-            ax.text(x[i], 1.0, "missing", rotation=90, ha="center", va="bottom", fontsize=8)
-    ax.set_xticks(x, [str(r["case"]) for r in rows])
-    _log_axes(ax, x=False)
     ax.set_xlabel("case")
-    ax.set_ylabel("time per query (µs)")
+    ax.set_ylabel("time per query (µs, log scale)")
     ax.grid(True, axis="y", which="both", alpha=0.3)
-    ax.set_title(
-        f"Table I at {res.settings['table_vertices']} vertices: single-query latency (this machine) "
-        "and the paper's numbers",
+    ax.set_title(title, fontsize=10)
+    ax.legend(fontsize=8, ncol=len(bars), loc="upper left")
+
+
+def _table1_bars(res, out_dir):
+    """Table I as bars: the paper's numbers and this machine's on two panels, one case axis, one µs scale."""
+    rows = [r for r in res.table1 if isinstance(r["case"], int)]
+    fig = new_figure(figsize=(9.0, 7.5), layout="constrained")
+    ax_paper, ax_here = fig.subplots(2, 1, sharex=True, sharey=True)
+    _table1_panel(
+        ax_paper,
+        rows,
+        [
+            ("paper_projection_us", "projection method", "C0", "//"),
+            ("paper_swift_us", "SWIFT", "C3", "//"),
+        ],
+        f"The paper's Table I: measured on an Intel i3 3.30 GHz, {PAPER_TABLE_VERTICES} vertices (its ms as µs)",
+    )
+    _table1_panel(
+        ax_here,
+        rows,
+        [
+            ("prismbatch_us", res.methods.get("prismbatch"), "C0", None),
+            ("fcl_us", res.methods.get("fcl"), "C3", None),
+            ("coal_us", res.methods.get("coal"), "C2", None),
+        ],
+        f"This study: measured on this machine ({cpu_name()}), {res.settings['table_vertices']} vertices, "
+        f"median of {res.settings['repeats']} repeats",
+    )
+    x = np.arange(len(rows))
+    for i, r in enumerate(rows):
+        if r["paper_projection_us"] is None:
+            ax_paper.text(
+                x[i],
+                0.03,
+                "not in\nthe paper",
+                ha="center",
+                va="bottom",
+                fontsize=8,
+                transform=ax_paper.get_xaxis_transform(),
+            )
+        if r["missing"]:
+            ax_here.text(
+                x[i],
+                0.03,
+                "missing",
+                rotation=90,
+                ha="center",
+                va="bottom",
+                fontsize=8,
+                transform=ax_here.get_xaxis_transform(),
+            )
+    ax_here.set_xticks(x, [str(r["case"]) for r in rows])
+    ax_paper.tick_params(labelbottom=True)
+    _log_axes(ax_here, x=False)
+    ax_here.set_ylim(top=ax_here.get_ylim()[1] * 8)  # room for the legends above the bars
+    fig.suptitle(
+        "Table I: single-query time per case on two different machines; compare the ratios within a panel, "
+        "not bar heights across panels",
         fontsize=10,
     )
-    ax.legend(fontsize=8, ncol=2, loc="upper left")
-    ax.set_ylim(top=ax.get_ylim()[1] * 8)  # room for the legend above the bars
     return save_figure(fig, out_dir, "study_table1")
 
 

@@ -4,12 +4,14 @@ against n (``{stem}_error_vs_n``), PNG and SVG (needs matplotlib)."""
 from __future__ import annotations
 
 import math
+import textwrap
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..report import cpu_name, legend_below, new_figure, save_figure
 from .result import METHODS, method_labels
+from .scene import vertices_needed
 
 _STYLE = {  # colour, marker, linestyle
     "pb64_batch": ("tab:blue", "o", "-"),
@@ -49,7 +51,10 @@ def _same_labels(result, m1, m2):
 
 
 def _draw_rates(ax, xs, rows, method, label, y_min):
-    """Rates with Wilson error bars; zero-error points at their upper bound as open down-triangles."""
+    """Rates with Wilson error bars; zero-error points at their upper bound as open down-triangles.
+
+    Returns True if it drew a zero-error point (then the axes need :func:`_zero_key`).
+    """
     col, mk, ls = _STYLE[method]
     xs = np.asarray(xs, dtype=float)
     rate = np.array([r["rate"] for r in rows])
@@ -58,9 +63,8 @@ def _draw_rates(ax, xs, rows, method, label, y_min):
     pos = rate > 0
     if len(xs) > 1:
         ax.plot(xs, np.where(pos, rate, hi), color=col, linestyle=ls, linewidth=1.2, alpha=0.8)
-    handle = None
     if pos.any():
-        handle = ax.errorbar(
+        ax.errorbar(
             xs[pos],
             rate[pos],
             yerr=[rate[pos] - np.maximum(lo[pos], y_min), hi[pos] - rate[pos]],
@@ -72,7 +76,7 @@ def _draw_rates(ax, xs, rows, method, label, y_min):
             label=label,
         )
     if (~pos).any():
-        h = ax.plot(
+        ax.plot(
             xs[~pos],
             hi[~pos],
             marker="v",
@@ -81,9 +85,36 @@ def _draw_rates(ax, xs, rows, method, label, y_min):
             linestyle="none",
             markersize=6,
             label=None if pos.any() else label,
-        )[0]
-        handle = handle or h
-    return handle
+        )
+    return bool((~pos).any())
+
+
+def _zero_key(ax, ctx):
+    """The legend key of the open down-triangles; only for axes where one is drawn."""
+    ax.plot([], [], marker="v", markerfacecolor="none", color="0.3", linestyle="none", label=ctx.zero_label)
+
+
+def _float32_note(ax, ctx, x, ha):
+    """Say on the rate axes that the float32 rows level off at float32's tolerance, not by failing."""
+    s = ctx.result.settings
+    tol = s["median_tolerance_rel"]["float32"]
+    text = (
+        f"The float32 rows level off by design, at float32's tolerance: rtol = {s['rtol']['float32']:g} of the "
+        f"pair's size (median {tol:.1e} r over these poses). Near misses within it are reported as hits (the "
+        f"tolerance allows either answer there), so once the n-gon's geometric error falls below it "
+        f"(n >= {vertices_needed(tol):,}) the rate stops falling."
+    )
+    ax.text(
+        x,
+        0.2,
+        textwrap.fill(text, 52),
+        transform=ax.transAxes,
+        ha=ha,
+        va="bottom",
+        fontsize=8,
+        color=_STYLE["pb32_batch"][0],
+        bbox=dict(boxstyle="round", facecolor="white", edgecolor="0.7", alpha=0.9),
+    )
 
 
 def _sparse_labels(pts, min_dec=0.14, column=False):
@@ -146,11 +177,12 @@ def _figure_error_vs_time(ctx, out_dir, stem):
     result, labels, s = ctx.result, ctx.labels, ctx.result.settings
     fig = new_figure(figsize=(13.5, 7.4), layout="constrained")
     ax1, ax2 = fig.subplots(1, 2)
+    zeros = False
     for m in METHODS:
         rows = _series(result, m)
         if not rows:
             continue
-        _draw_rates(ax1, [r["t_median_us"] for r in rows], rows, m, labels[m], ctx.y_min)
+        zeros |= _draw_rates(ax1, [r["t_median_us"] for r in rows], rows, m, labels[m], ctx.y_min)
         if m != "fcl_cylinder":
             c, mk, ls = _STYLE[m]
             ax2.plot(
@@ -163,7 +195,10 @@ def _figure_error_vs_time(ctx, out_dir, stem):
                 markersize=5,
             )
     ax1.axhline(ctx.floor, color="0.4", linestyle=":", linewidth=1.2, label=ctx.floor_label)
-    ax1.plot([], [], marker="v", markerfacecolor="none", color="0.3", linestyle="none", label=ctx.zero_label)
+    if zeros:
+        _zero_key(ax1, ctx)
+    if _series(result, "pb32_batch"):
+        _float32_note(ax1, ctx, 0.98, "right")  # prismbatch sits left, the slower peers high
     for ax, key in ((ax1, "rate"), (ax2, "geom_rel_error")):
         _annotate_n(ax, key, ctx)
     if ctx.cyl:
@@ -233,6 +268,15 @@ def _panel_geometry(ax1, ctx):
             linewidth=1,
             label=f"deepest missed hit, |gap| / r: {labels['fcl_cylinder']}",
         )
+    if _series(result, "pb32_batch"):
+        tol = s["median_tolerance_rel"]["float32"]
+        ax1.axhline(
+            tol,
+            color=_STYLE["pb32_batch"][0],
+            linestyle=(0, (5, 3)),
+            linewidth=1,
+            label=f"prismbatch float32 tolerance: rtol {s['rtol']['float32']:g} of the pair's size, median {tol:.1e} r",
+        )
     ax1.axhline(
         s["gap_range_rel"][0],
         color="0.4",
@@ -246,6 +290,7 @@ def _panel_geometry(ax1, ctx):
 def _panel_rates_vs_n(ax2, ctx):
     """(b) misclassification rate against n; a pair row identical to its batch row is drawn once."""
     result, labels, cyl = ctx.result, ctx.labels, ctx.cyl
+    zeros = False
     for m in METHODS:
         rows = _series(result, m)
         if not rows or m == "fcl_cylinder":
@@ -255,7 +300,7 @@ def _panel_rates_vs_n(ax2, ctx):
         lab = labels[m]
         if m.endswith("_batch") and _same_labels(result, m, m.replace("_batch", "_pair")):
             lab = lab.replace("batch call (1 thread)", "batch call and collide_pair (identical labels)")
-        _draw_rates(ax2, [r["n"] for r in rows], rows, m, lab, ctx.y_min)
+        zeros |= _draw_rates(ax2, [r["n"] for r in rows], rows, m, lab, ctx.y_min)
     if cyl:
         r = cyl[0]
         ax2.axhspan(max(r["ci_low"], ctx.y_min), r["ci_high"], color="0.8", alpha=0.6)
@@ -267,7 +312,10 @@ def _panel_rates_vs_n(ax2, ctx):
             label=labels["fcl_cylinder"] + " (no n; grey band: 95 % CI)",
         )
     ax2.axhline(ctx.floor, color="0.4", linestyle=":", label=ctx.floor_label)
-    ax2.plot([], [], marker="v", markerfacecolor="none", color="0.3", linestyle="none", label=ctx.zero_label)
+    if zeros:
+        _zero_key(ax2, ctx)
+    if _series(result, "pb32_batch"):
+        _float32_note(ax2, ctx, 0.02, "left")  # every method misses often at small n: the lower left is free
     ax2.set_ylim(bottom=ctx.y_min, top=1.0)
     ax2.set_ylabel("misclassification rate against the exact cylinder (log scale)")
     ax2.set_title("(b) misclassification rate (95 % Wilson intervals)", fontsize=10)
