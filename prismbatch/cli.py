@@ -103,7 +103,8 @@ def _add_resume_option(p):
         "--resume",
         action="store_true",
         help="continue a run stopped by Ctrl-C, SIGTERM or a crash: the same command and --out load "
-        "what it finished from DIR/checkpoint; the results equal an uninterrupted run's",
+        "what it finished from DIR/checkpoint; counts and answers equal an uninterrupted run's (the "
+        "timings of the loaded parts are the earlier run's)",
     )
 
 
@@ -350,6 +351,7 @@ def _study_parser(sub):
         help="disagreements per cell arbitrated by the exact LP (default: 10)",
     )
     _add_output_options(p)
+    _add_resume_option(p)
     p.set_defaults(func=_lab_command("study"))
 
 
@@ -377,6 +379,7 @@ def _workprec_parser(sub):
     p.add_argument("--repeats", type=int, default=None, metavar="R", help="timed passes (default: 3)")
     p.add_argument("--no-fcl", dest="fcl", action="store_false", help="skip python-fcl (its rows stay, as NaN)")
     _add_output_options(p)
+    _add_resume_option(p)
     p.set_defaults(func=_lab_command("workprec"))
 
 
@@ -479,11 +482,12 @@ def _interrupted(exc):
 
     if not isinstance(exc, Interrupted):
         return "interrupted"
-    files = getattr(exc, "files", None) or {}
-    if not files:
-        return f"{exc}; nothing written (no --out)"
-    where = files.get("markdown") or next(iter(files.values()))
-    return f"{exc}; partial report {where}; the same command with --resume continues"
+    if exc.files:
+        where = exc.files.get("markdown") or next(iter(exc.files.values()))
+        return f"{exc}; partial report {where}; the same command with --resume continues"
+    if exc.checkpoint is not None:
+        return f"{exc}; finished {exc.unit}s kept in {exc.checkpoint.dir}; the same command with --resume continues"
+    return f"{exc}; nothing kept (no --out)"
 
 
 #: The extra that installs a module the lab imports when a subcommand needs it.

@@ -20,7 +20,7 @@ from pathlib import Path
 
 from .report import atomic_open, jsonable, write_json
 
-__all__ = ["Checkpoint", "Interrupted"]
+__all__ = ["Checkpoint", "Interrupted", "run_unit", "discard", "resumed_note"]
 
 
 class Interrupted(KeyboardInterrupt):
@@ -32,13 +32,16 @@ class Interrupted(KeyboardInterrupt):
         Units of work finished (including any loaded on resume) and in all.
     unit : str
         What a unit is ("pair", "vertex count", ...), for the message.
+    checkpoint : Checkpoint or None
+        Where the finished units are kept.
     files : dict
         The partial report's files, when one was written.
     """
 
-    def __init__(self, done, total, unit, files=None):
+    def __init__(self, done, total, unit, *, checkpoint=None, files=None):
         super().__init__(f"interrupted after {done:,} of {total:,} {unit}s")
-        self.done, self.total, self.unit, self.files = done, total, unit, files or {}
+        self.done, self.total, self.unit = done, total, unit
+        self.checkpoint, self.files = checkpoint, files or {}
 
 
 class Checkpoint:
@@ -102,7 +105,39 @@ class Checkpoint:
 
     def remove(self):
         """Delete the checkpoint (the run finished and wrote its files)."""
-        shutil.rmtree(self.dir, ignore_errors=True)
-        parent = self.dir.parent
-        if parent.exists() and not any(parent.iterdir()):
-            parent.rmdir()
+        discard(self.dir.parent.parent, self.dir.name)
+
+
+def discard(out_dir, command):
+    """Delete ``command``'s checkpoint in ``out_dir`` (and the checkpoint folder once empty)."""
+    folder = Path(out_dir) / "checkpoint"
+    shutil.rmtree(folder / command, ignore_errors=True)
+    if folder.exists() and not any(folder.iterdir()):
+        folder.rmdir()
+
+
+def run_unit(ckpt, unit, compute):
+    """``(compute(), False)``, saved to ``ckpt``; or ``(saved result, True)`` when ``ckpt`` has ``unit``.
+
+    ``ckpt`` None runs ``compute`` without saving.
+    """
+    if ckpt is not None:
+        saved = ckpt.load(unit)
+        if saved is not None:
+            return saved, True
+    result = compute()
+    if ckpt is not None:
+        ckpt.save(unit, result)
+    return result, False
+
+
+def resumed_note(resumed):
+    """Report lines saying which vertex counts a resumed run loaded (none: no lines)."""
+    if not resumed:
+        return []
+    counts = ", ".join(str(n) for n in resumed)
+    return [
+        f"**Resumed run:** the rows at {counts} vertices were measured by the interrupted run (another "
+        "process, perhaps another machine load) and loaded from its checkpoint.",
+        "",
+    ]

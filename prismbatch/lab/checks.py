@@ -52,3 +52,16 @@ def check_positive(v, name):
     if not (math.isfinite(f) and f > 0):
         raise ValueError(f"{name} must be finite and > 0, got {v}")
     return f
+
+
+def check_vertex_counts(vertices, name="vertices"):
+    """Refuse, before any work, a vertex count no polygon may have (:data:`~prismbatch.config.MAX_VERTICES`).
+
+    Without this a run would measure the smaller counts first and fail only at the large one.
+    """
+    from ..config import MAX_VERTICES
+
+    for n in vertices:
+        if n > MAX_VERTICES:
+            raise ValueError(f"{name}: {n:,} is more than the {MAX_VERTICES:,} vertices a polygon may have")
+    return vertices

@@ -9,6 +9,7 @@ from __future__ import annotations
 import functools
 import sys
 
+from .checkpoint import discard
 from .report import MPL_MISSING
 
 __all__ = [
@@ -60,6 +61,7 @@ def _print_paths(paths):
 def study_command(args):
     from .study import format_study, run_study, write_study
 
+    _check_resume(args)
     res = run_study(
         vertices=args.vertices,
         cases=args.cases or tuple(range(1, 12)),
@@ -72,11 +74,14 @@ def study_command(args):
         progress=_show_progress(args),
         lp_checks=args.lp_checks,
         table_vertices=args.table_vertices,
+        checkpoint_dir=args.out,
+        resume=args.resume,
     )
     for line in format_study(res):
         print(line)
     if args.out is not None:
         _print_paths(write_study(res, args.out, figures=not args.no_figures))
+        discard(args.out, "study")  # every file is written: the finished vertex counts are not needed
     return 0
 
 
@@ -142,6 +147,7 @@ def _run_or_write_partial(run, write):
 def workprec_command(args):
     from .workprec import format_work_precision, run_work_precision, write_work_precision
 
+    _check_resume(args)
     res = run_work_precision(
         vertices=args.vertices,
         n_poses=args.poses,
@@ -151,11 +157,14 @@ def workprec_command(args):
         quick=args.quick,
         progress=_show_progress(args),
         fcl=args.fcl,
+        checkpoint_dir=args.out,
+        resume=args.resume,
     )
     for line in format_work_precision(res):
         print(line)
     if args.out is not None:
         _print_paths(write_work_precision(res, args.out, figures=not args.no_figures))
+        discard(args.out, "workprec")
     return 0
 
 

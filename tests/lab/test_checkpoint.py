@@ -116,3 +116,31 @@ def test_sigterm_stops_the_command_with_one_line_and_status_130(tmp_path):
     assert len(lines) == 1 and lines[0].startswith("prismbatch: interrupted after "), err
     assert "the same command with --resume continues" in lines[0]
     assert "PARTIAL" in (out / "validation.md").read_text()
+
+
+def test_an_interrupted_study_resumes_from_its_finished_vertex_counts(tmp_path, monkeypatch):
+    from prismbatch.lab.study import run as study_run
+
+    small = dict(vertices=(12, 24), cases=(1, 6), poses_per_case=8, repeats=1, batch_pairs=64)
+    small.update(peers=(), lp_checks=0, progress=False)
+    whole = study_run.run_study(**small)
+    real = study_run._measure_vertices
+
+    def stop_at_24(n, *args):
+        if n == 24:
+            raise KeyboardInterrupt
+        return real(n, *args)
+
+    monkeypatch.setattr(study_run, "_measure_vertices", stop_at_24)
+    with pytest.raises(Interrupted) as e:
+        study_run.run_study(**small, checkpoint_dir=tmp_path)
+    assert (e.value.done, e.value.total) == (1, 2)
+    monkeypatch.setattr(study_run, "_measure_vertices", real)
+    resumed = study_run.run_study(**small, checkpoint_dir=tmp_path, resume=True)
+    assert resumed.settings["resumed_vertices"] == [12]
+    assert resumed.agreement == whole.agreement  # the answers, not the timings
+    assert [(r["vertices"], r["case"], r["method"]) for r in resumed.latency] == [
+        (r["vertices"], r["case"], r["method"]) for r in whole.latency
+    ]
+    with pytest.raises(ValueError, match="other settings"):
+        study_run.run_study(**{**small, "repeats": 2}, checkpoint_dir=tmp_path, resume=True)

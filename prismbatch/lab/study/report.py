@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from ..checkpoint import resumed_note
 from ..report import fmt, pct
 from .analysis import growth_model_text, growth_row
 from .constants import PAPER_GROWTH_MS_PER_1000, PAPER_SOURCE, PAPER_TABLE_VERTICES
@@ -176,6 +177,7 @@ def markdown(res, paths):
     """The Markdown page of the study (``study.md``) linking the files in ``paths``."""
     s = res.settings
     L = ["# Timing study: prismbatch vs python-fcl and coal (paper Table I, Fig. 7)", ""]
+    L += resumed_note(s.get("resumed_vertices"))
     L += ["```", *format_study(res), "```", ""]
     n = s["table_vertices"]
     L += [

@@ -14,7 +14,8 @@ import numpy as np
 from ...collide import Collider
 from ...shapes import Prism
 from ..casegen import CASE_NUMBERS, case_poses
-from ..checks import check_int, check_int_tuple, is_int
+from ..checkpoint import Checkpoint, Interrupted, run_unit
+from ..checks import check_int, check_int_tuple, check_vertex_counts, is_int
 from ..report import package_versions
 from ..report import progress as progress_bar
 from ..timing import cpu_snapshot, other_load, stats, timed_loops
@@ -34,7 +35,7 @@ def _check_arguments(
 ):
     """The arguments of :func:`run_study` checked, with the ``quick`` or full defaults filled in."""
     base = QUICK if quick else DEFAULTS
-    vertices = check_int_tuple(base["vertices"] if vertices is None else vertices, "vertices", 3)
+    vertices = check_vertex_counts(check_int_tuple(base["vertices"] if vertices is None else vertices, "vertices", 3))
     cases = check_int_tuple(cases, "cases", 1)
     bad = [c for c in cases if c not in CASE_NUMBERS]
     if bad:
@@ -141,6 +142,11 @@ class _Tables:
     agreement: list = field(default_factory=list)
     missing: list = field(default_factory=list)
     notes: list = field(default_factory=list)
+
+    def extend(self, other):
+        """Append the rows of ``other`` (one vertex count's, measured or loaded from a checkpoint)."""
+        for name in ("latency", "throughput", "agreement", "missing", "notes"):
+            getattr(self, name).extend(getattr(other, name))
 
 
 def _scene_poses(n, a, b, cases, poses_per_case, seed, missing):
@@ -293,6 +299,8 @@ def run_study(
     progress=True,
     lp_checks=10,
     table_vertices=None,
+    checkpoint_dir=None,
+    resume=False,
 ):
     """Time prismbatch against python-fcl and coal per case and vertex count.
 
@@ -327,6 +335,13 @@ def run_study(
         Vertex count of Table I, among ``vertices``; by default 3600 (the
         paper's) when measured, else the largest count measured. At another
         count the report says that the paper's columns are not comparable.
+    checkpoint_dir : str or path-like, optional
+        Save each vertex count's rows when finished, under
+        ``checkpoint_dir/checkpoint/study`` (:class:`~prismbatch.lab.checkpoint.Checkpoint`).
+    resume : bool, optional
+        Load the vertex counts an earlier run with the same settings finished
+        there (their timings are that run's; ``settings["resumed_vertices"]``
+        lists them).
 
     Returns
     -------
@@ -360,15 +375,29 @@ def run_study(
         "threads": threads,
     }
 
-    rtol = 1e-9
+    ckpt = None
+    if checkpoint_dir is not None:
+        ckpt = Checkpoint(checkpoint_dir, "study", {**cfg, "vertices": vertices, "quick": quick}, resume=resume)
     bar = progress_bar(len(vertices) * len(cases), enabled=progress, unit="cell", desc="study")
     t_start = time.perf_counter()
+    resumed, finished = [], []
+
+    def measure(n):
+        a, b = Prism.regular(n, RADIUS_A), Prism.regular(n, RADIUS_B)
+        cell = _Tables()
+        _measure_vertices(n, Collider(a, b), a, b, cfg, bar, cell)
+        return cell
+
     try:
         for n in vertices:
-            a, b = Prism.regular(n, RADIUS_A), Prism.regular(n, RADIUS_B)
-            col = Collider(a, b)
-            rtol = col.rtol
-            _measure_vertices(n, col, a, b, cfg, bar, out)
+            cell, loaded = run_unit(ckpt, f"vertices-{n}", lambda n=n: measure(n))
+            if loaded:
+                resumed.append(n)
+                bar.update(len(cases))
+            out.extend(cell)
+            finished.append(n)
+    except KeyboardInterrupt:
+        raise Interrupted(len(finished), len(vertices), "vertex count", checkpoint=ckpt) from None
     finally:
         bar.close()
     env["loadavg_end"] = list(os.getloadavg()) if hasattr(os, "getloadavg") else None
@@ -392,9 +421,10 @@ def run_study(
         "hit_fraction": 0.5,
         "radius_a": RADIUS_A,
         "radius_b": RADIUS_B,
-        "rtol": rtol,
+        "rtol": Collider(Prism.regular(3, RADIUS_A), Prism.regular(3, RADIUS_B)).rtol,
         "pose_seed_rule": "numpy.random.default_rng([seed, vertices, case])",
         "numba_threads": threads,
+        "resumed_vertices": resumed,
     }
     res = StudyResult(
         settings=settings,

@@ -232,7 +232,7 @@ def validate(
     except KeyboardInterrupt:
         done = sum(c["pairs"] for c in merger.counts.values())
         total = cfg["n_pairs"] * len(cfg["distributions"])
-        exc = Interrupted(done, total, "pair")
+        exc = Interrupted(done, total, "pair", checkpoint=ckpt)
         exc.result = result({"scheduler": "interrupted"}, partial={"pairs_done": done, "pairs_total": total})
         raise exc from None
     res = result(execution)

@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+from ..checkpoint import resumed_note
 from ..report import fmt, run_metadata, write_csv, write_json, write_text
 from .plots import plot_work_precision
 from .result import WorkPrecisionResult
@@ -110,6 +111,7 @@ def _markdown(result, figures):
     out = [
         "# Work-precision: a cylinder as an n-gon prism",
         "",
+        *resumed_note(s.get("resumed_vertices")),
         f"a = semi-infinite cylinder of radius {s['radius']:g} (axis down), approximated by the regular n-gon "
         f"INSCRIBED in its circle; b = {s['shape_b']}. {s['n_poses']:,} near-contact poses with exact labels "
         f"(|gap|/r log-uniform in [{s['gap_range_rel'][0]:g}, {s['gap_range_rel'][1]:g}], half hits); the same "

@@ -16,7 +16,8 @@ import numpy as np
 
 from ...collide import DEFAULT_RTOL, Collider, pair_scale_tolerance
 from ...shapes import Prism
-from ..checks import check_int, check_positive
+from ..checkpoint import Checkpoint, Interrupted, run_unit
+from ..checks import check_int, check_positive, check_vertex_counts
 from ..report import package_versions
 from ..report import progress as make_progress_bar
 from ..timing import seconds_of
@@ -166,7 +167,7 @@ def resolve_arguments(vertices, n_poses, repeats, seed, radius, quick):
     if vertices is None:
         vertices = QUICK_VERTICES if quick else DEFAULT_VERTICES
     try:
-        verts = sorted({check_int(v, "vertices", 3) for v in vertices})
+        verts = sorted(check_vertex_counts({check_int(v, "vertices", 3) for v in vertices}))
     except TypeError as exc:
         raise TypeError(f"vertices must be a sequence of integers >= 3: {exc}") from None
     if not verts:
@@ -335,7 +336,17 @@ def run_settings(*, radius, verts, n_poses, repeats, seed, quick, P, L, fcl_on, 
 
 
 def run_work_precision(
-    *, vertices=None, n_poses=None, radius=1.0, repeats=None, seed=0, quick=False, progress=True, fcl=True
+    *,
+    vertices=None,
+    n_poses=None,
+    radius=1.0,
+    repeats=None,
+    seed=0,
+    quick=False,
+    progress=True,
+    fcl=True,
+    checkpoint_dir=None,
+    resume=False,
 ):
     """Run the work-precision study (``docs/methods/work-precision.md``).
 
@@ -361,6 +372,13 @@ def run_work_precision(
     fcl : bool, optional
         Run the python-fcl rows (needs python-fcl); when False their times
         and errors are NaN.
+    checkpoint_dir : str or path-like, optional
+        Save each vertex count's rows when finished, under
+        ``checkpoint_dir/checkpoint/workprec``.
+    resume : bool, optional
+        Load the vertex counts an earlier run with the same settings finished
+        there (their timings are that run's; ``settings["resumed_vertices"]``
+        lists them).
 
     Returns
     -------
@@ -380,17 +398,38 @@ def run_work_precision(
     L, fcl_items = fcl_standins(probe, shape_b, P) if fcl_on else (None, None)
 
     tol = {np.float64: None, np.float32: None}
+    ckpt = None
+    if checkpoint_dir is not None:
+        key = {"vertices": verts, "n_poses": n_poses, "repeats": repeats, "seed": seed, "radius": radius}
+        ckpt = Checkpoint(checkpoint_dir, "workprec", {**key, "fcl": fcl_on}, resume=resume)
+
+    def measure(n):
+        """The rows at ``n`` and their hits (a fresh table), with the tolerances they used."""
+        part = RowTable(P, table.labels, radius)
+        geom_rel = float(geometric_error(n))
+        depth = P.depth_in_ngon(shape_b, n)
+        shape_a = time_prismbatch(part, n, shape_b, arrays, items, tol, repeats, depth, geom_rel)
+        time_fcl_ngon(part, n, shape_a, shape_b, L, fcl_items, repeats, depth, geom_rel)
+        return part.rows, part.preds, dict(tol)
+
+    resumed, finished = [], []
     bar = make_progress_bar(len(verts) + 1, enabled=progress, unit="n", desc="work-precision")
-    with bar:
-        for n in verts:
-            bar.set_description(f"work-precision n={n}")
-            geom_rel = float(geometric_error(n))
-            depth = P.depth_in_ngon(shape_b, n)
-            shape_a = time_prismbatch(table, n, shape_b, arrays, items, tol, repeats, depth, geom_rel)
-            time_fcl_ngon(table, n, shape_a, shape_b, L, fcl_items, repeats, depth, geom_rel)
+    try:
+        with bar:
+            for n in verts:
+                bar.set_description(f"work-precision n={n}")
+                (rows, preds, tol_n), loaded = run_unit(ckpt, f"vertices-{n}", lambda n=n: measure(n))
+                table.rows += rows
+                table.preds.update(preds)
+                tol.update(tol_n)  # the first n fixes the per-pair tolerances for the others
+                if loaded:
+                    resumed.append(n)
+                finished.append(n)
+                bar.update(1)
+            time_fcl_cylinder(table, shape_b, L, fcl_on, repeats)
             bar.update(1)
-        time_fcl_cylinder(table, shape_b, L, fcl_on, repeats)
-        bar.update(1)
+    except KeyboardInterrupt:
+        raise Interrupted(len(finished), len(verts), "vertex count", checkpoint=ckpt) from None
 
     table.sort()
     settings = run_settings(
@@ -405,6 +444,7 @@ def run_work_precision(
         fcl_on=fcl_on,
         tol=tol,
     )
+    settings["resumed_vertices"] = resumed
     return WorkPrecisionResult(
         settings, table.rows, geometry_summary(verts, radius), compile_s, P, table.preds, versions
     )
