@@ -22,9 +22,19 @@ __all__ = [
 ]
 
 
+def _check_figures(args, hint=" (or pass --no-figures)"):
+    """Fail before any work, not after it, when figures are asked for and matplotlib is missing."""
+    if args.out is not None and not getattr(args, "no_figures", False):
+        try:
+            import matplotlib  # noqa: F401
+        except ImportError:
+            raise ImportError(MPL_MISSING + hint) from None
+
+
 def experiment_command(args):
     from .experiment import format_summary, run_experiment, write_experiment
 
+    _check_figures(args)
     res = run_experiment(
         args.prism,
         vertices=args.vertices,
@@ -42,10 +52,7 @@ def experiment_command(args):
     if args.out is None:
         print("(no files written: pass --out DIR for the trajectory CSV, JSON metadata, Markdown summary and figures)")
         return 0
-    try:
-        paths = write_experiment(res, args.out, figures=not args.no_figures)
-    except ImportError:
-        raise ImportError(f"{MPL_MISSING} (or pass --no-figures)") from None
+    paths = write_experiment(res, args.out, figures=not args.no_figures)
     print(f"wrote {paths['csv']}, {paths['json']}, {paths['markdown']}")
     for f in paths["figures"]:
         print(f"wrote {f}")
@@ -62,6 +69,7 @@ def study_command(args):
     from .study import format_study, run_study, write_study
 
     _check_resume(args)
+    _check_figures(args)
     res = run_study(
         vertices=args.vertices,
         cases=args.cases or tuple(range(1, 12)),
@@ -148,6 +156,7 @@ def workprec_command(args):
     from .workprec import format_work_precision, run_work_precision, write_work_precision
 
     _check_resume(args)
+    _check_figures(args)
     res = run_work_precision(
         vertices=args.vertices,
         n_poses=args.poses,
@@ -171,6 +180,7 @@ def workprec_command(args):
 def reproduce_command(args):
     from .reproduce import run_reproduce
 
+    _check_figures(args, hint="")
     res = run_reproduce(
         args.out, quick=args.quick, seed=args.seed, parts=args.parts or None, progress_bar=_show_progress(args)
     )

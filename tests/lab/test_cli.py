@@ -85,3 +85,30 @@ def test_a_missing_optional_dependency_is_one_line_with_the_pip_command(monkeypa
         "prismbatch: interrupted",
         "prismbatch: error: [Errno 28] No space left on device: 'out/validation.json'",
     ]
+
+
+def test_missing_matplotlib_is_reported_before_any_work(monkeypatch, capsys, tmp_path):
+    """study/workprec/experiment/reproduce with --out and figures: one line, exit 3, nothing run."""
+    import builtins
+
+    from prismbatch.lab import experiment, reproduce, study, workprec
+
+    real_import = builtins.__import__
+
+    def no_matplotlib(name, *args, **kw):
+        if name.split(".")[0] == "matplotlib":
+            raise ModuleNotFoundError(f"No module named {name!r}", name=name)
+        return real_import(name, *args, **kw)
+
+    def must_not_run(*args, **kw):
+        raise AssertionError("a run started although its figures could not be drawn")
+
+    for module, name in ((study, "run_study"), (workprec, "run_work_precision"), (experiment, "run_experiment")):
+        monkeypatch.setattr(module, name, must_not_run)
+    monkeypatch.setattr(reproduce, "run_reproduce", must_not_run)
+    monkeypatch.setattr(builtins, "__import__", no_matplotlib)
+    for argv in (["study", "--quick"], ["workprec", "--quick"], ["experiment"], ["reproduce", "--quick"]):
+        assert main([*argv, "--out", str(tmp_path / argv[0])]) == 3
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 4 and all(line.startswith("prismbatch: figures need matplotlib: pip install") for line in err)
+    assert err[0].endswith("(or pass --no-figures)") and not err[3].endswith("--no-figures)")
