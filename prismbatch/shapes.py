@@ -35,6 +35,16 @@ _CONVEX_RTOL = 1e-12
 _BYTES_PER_VERTEX = 200
 
 
+def _next(a):
+    """``a`` shifted so that row k holds row k + 1 (cyclic): ``np.roll(a, -1, axis=0)``, without its overhead."""
+    return np.concatenate((a[1:], a[:1]))
+
+
+def _prev(a):
+    """``a`` shifted so that row k holds row k - 1 (cyclic): ``np.roll(a, 1, axis=0)``."""
+    return np.concatenate((a[-1:], a[:-1]))
+
+
 def validate_polygon(xy, *, name="polygon"):
     """Check a convex polygon and return it counter-clockwise as float64.
 
@@ -99,7 +109,7 @@ def validate_polygon(xy, *, name="polygon"):
             f"{name}: edge {k} is {elen[k]:.3g} of the polygon's size, below the supported "
             f"{MIN_RELATIVE_EDGE:g}: merge vertices {k} and {(k + 1) % n}"
         )
-    area2 = float(np.sum(rel[:, 0] * np.roll(rel[:, 1], -1) - np.roll(rel[:, 0], -1) * rel[:, 1]))
+    area2 = float(np.sum(rel[:, 0] * _next(rel[:, 1]) - _next(rel[:, 0]) * rel[:, 1]))
     if abs(area2) <= MIN_RELATIVE_AREA:
         if _exact_area2(arr) == 0:
             raise ValueError(f"{name}: polygon has zero area (collinear vertices)")
@@ -109,12 +119,12 @@ def validate_polygon(xy, *, name="polygon"):
         )
     if area2 < 0.0:
         arr = np.ascontiguousarray(arr[::-1])
-        edges = -np.roll(edges[::-1], -1, axis=0)
-        elen = np.roll(elen[::-1], -1)
-    prev = np.roll(edges, 1, axis=0)
+        edges = -_next(edges[::-1])
+        elen = _next(elen[::-1])
+    prev = _prev(edges)
     cross = prev[:, 0] * edges[:, 1] - prev[:, 1] * edges[:, 0]
     dot = prev[:, 0] * edges[:, 0] + prev[:, 1] * edges[:, 1]
-    dent = cross < -_CONVEX_RTOL * elen * np.roll(elen, 1)
+    dent = cross < -_CONVEX_RTOL * elen * _prev(elen)
     if dent.any():
         k = int(np.argmax(dent))
         raise ValueError(f"{name}: polygon is not convex at vertex {k} (reflex turn)")
@@ -161,7 +171,7 @@ def _unit_scaled(xy):
     if big == 0.0:
         return None, None
     u = np.ldexp(xy, -int(np.frexp(big)[1]))  # |u| < 1
-    edges = np.roll(u, -1, axis=0) - u
+    edges = _next(u) - u
     size = float(np.max(np.abs(edges)))
     if size == 0.0:
         return None, None
@@ -180,7 +190,7 @@ def _centroid(ccw):
     # Shift to the mean too: keeps the shoelace sums well conditioned.
     x0, y0 = xs.mean(), ys.mean()
     xs, ys = xs - x0, ys - y0
-    xn, yn = np.roll(xs, -1), np.roll(ys, -1)
+    xn, yn = _next(xs), _next(ys)
     cr = xs * yn - xn * ys
     a = cr.sum() / 2.0
     c = np.array([((xs + xn) * cr).sum() / (6.0 * a) + x0, ((ys + yn) * cr).sum() / (6.0 * a) + y0])
@@ -190,18 +200,18 @@ def _centroid(ccw):
 def _kernel_data(ccw, centre):
     """Per-polygon arrays the kernels use (see PrismSet attributes)."""
     v = ccw - centre
-    e = np.roll(v, -1, axis=0) - v
+    e = _next(v) - v
     elen = np.hypot(e[:, 0], e[:, 1])
     eang = np.empty(len(v))
     etab = np.empty(len(v), dtype=np.int64)
-    exact_edges = np.roll(ccw, -1, axis=0) - ccw
+    exact_edges = _next(ccw) - ccw
     edge_search_tables(np.ascontiguousarray(exact_edges[:, 0]), np.ascontiguousarray(exact_edges[:, 1]), eang, etab)
     # Polar angle of each vertex about the centre, unwrapped to increase
     # (from unit-scaled copies: angles do not depend on size, products might overflow).
     u = np.ldexp(v, -int(np.frexp(float(np.max(np.abs(v))))[1]))
     step = np.arctan2(
-        np.roll(u[:, 0], 1) * u[:, 1] - np.roll(u[:, 1], 1) * u[:, 0],
-        np.roll(u[:, 0], 1) * u[:, 0] + np.roll(u[:, 1], 1) * u[:, 1],
+        _prev(u[:, 0]) * u[:, 1] - _prev(u[:, 1]) * u[:, 0],
+        _prev(u[:, 0]) * u[:, 0] + _prev(u[:, 1]) * u[:, 1],
     )
     vang = np.arctan2(v[0, 1], v[0, 0]) + np.concatenate(([0.0], np.cumsum(step[1:])))
     radius = float(np.max(np.hypot(v[:, 0], v[:, 1])))
