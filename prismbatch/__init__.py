@@ -11,9 +11,10 @@ behind a vectorised NumPy API.
 from importlib.metadata import PackageNotFoundError, version
 
 from .collide import CASES, Collider, CollisionResult, collide
+from .distance import DistanceResult, distance
 from .shapes import Prism, PrismSet
 
-__all__ = ["Prism", "PrismSet", "collide", "Collider", "CollisionResult", "CASES"]
+__all__ = ["Prism", "PrismSet", "collide", "distance", "Collider", "CollisionResult", "DistanceResult", "CASES"]
 
 try:  # the one place the version lives is pyproject.toml
     __version__ = version("prismbatch")

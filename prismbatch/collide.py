@@ -210,6 +210,26 @@ class Collider:
         )
         return CollisionResult(hit, case, cont if contact else None)
 
+    def distance(self, pos_a, rot_a=None, pos_b=None, rot_b=None, *, witness=False, quat_order=None, parallel=None):
+        """Signed distance of the pose pairs; see :func:`prismbatch.distance` for the arguments."""
+        from .distance import signed_distance  # distance builds on this module
+
+        return signed_distance(
+            self._a,
+            self._b,
+            self._n_shapes,
+            pos_a,
+            rot_a,
+            pos_b,
+            rot_b,
+            rtol=self.rtol,
+            atol=self.atol,
+            dtype=self.dtype,
+            witness=witness,
+            quat_order=quat_order,
+            parallel=parallel,
+        )
+
     def collide_pair(self, pos_a, rot_a=None, pos_b=None, rot_b=None, *, quat_order=None):
         """One pose pair at the lowest latency: one compiled call, checks included.
 

@@ -95,9 +95,14 @@ def detach(shape_a, contact, pos_a, rot_a, rot_b, state_error, *, eps=10.0, tol=
     ----------
     shape_a : Prism or PrismSet
         Prism a (one shared, or one per pair).
-    contact : array_like, shape (N, 3)
+    contact : array_like, shape (N, 3), or DistanceResult
         Contact points in world coordinates (``collide(..., contact=True).contact``);
-        NaN rows (no hit) give class 0 and NaN directions.
+        NaN rows (no hit) give class 0 and NaN directions. Or the result of
+        :func:`prismbatch.distance` with ``witness=True``: then the contact
+        is ``point_a`` (on a's boundary, where the bodies really touch, so
+        the class is never 6 "inside"), the direction is the penetration
+        normal (the shortest way out) and ``depth`` the penetration depth;
+        separated pairs (status 1) are not contacts.
     pos_a, rot_a : array_like
         a's poses, as for :func:`prismbatch.collide`.
     rot_b : array_like
@@ -138,6 +143,9 @@ def detach(shape_a, contact, pos_a, rot_a, rot_b, state_error, *, eps=10.0, tol=
     set_a, per = as_prism_set(shape_a, "shape_a")
     pa, ra = as_pose(pos_a, rot_a, quat_order=quat_order, name="a")
     rb = as_rotations(rot_b, quat_order=quat_order, name="rot_b")
+    measured = _from_distance(contact)
+    if measured is not None:
+        contact = measured.contact
     c = as_real_array(contact, "contact").astype(np.float64)
     if c.ndim == 1:
         c = c[None, :]
@@ -196,5 +204,31 @@ def detach(shape_a, contact, pos_a, rot_a, rot_b, state_error, *, eps=10.0, tol=
             f"{NOT_A_CONTACT_RTOL:g} x a's radius: not a contact point of a (pass "
             f"collide(..., contact=True).contact)"
         )
+    if measured is not None:  # where the bodies really touch: out along the penetration normal
+        hit = cls > 0
+        direction[hit] = np.broadcast_to(measured.normal, (n, 3))[hit]
+        depth[hit] = np.broadcast_to(measured.depth, (n,))[hit]
     force = _force(eps, errn, direction)
     return DetachResult(cls, direction, force, depth)
+
+
+@dataclass(frozen=True)
+class _Measured:
+    contact: np.ndarray
+    normal: np.ndarray
+    depth: np.ndarray
+
+
+def _from_distance(result):
+    """The contact point, normal and depth of a :func:`prismbatch.distance` result; None for plain points."""
+    from .distance import SEPARATED, DistanceResult
+
+    if not isinstance(result, DistanceResult):
+        return None
+    try:
+        normal, point_a = result.normal, result.point_a
+    except AttributeError:
+        raise ValueError("detach needs the witness points of the distance: call distance(..., witness=True)") from None
+    apart = (result.status == SEPARATED)[:, None]
+    depth = np.maximum(-result.distance, 0.0)
+    return _Measured(np.where(apart, np.nan, point_a), np.where(apart, np.nan, normal), depth)

@@ -20,6 +20,12 @@ def test_readme_python_example_runs():
     np.testing.assert_array_equal(r.hit, rc.hit)
     assert rc.contact.shape == (len(r.hit), 3)
     assert np.isnan(rc.contact[~rc.hit]).all() and np.isfinite(rc.contact[rc.hit]).all()
+    # The signed distance agrees with the hits where collide must be sure (collide may report a hit
+    # for a gap up to 2 tol, its touching band).
+    sd, w = ns["sd"], ns["w"]
+    sure = np.abs(sd.distance) > 2 * sd.tol
+    np.testing.assert_array_equal(sd.status[sure] < 0, r.hit[: len(sd)][sure])
+    np.testing.assert_allclose(w.point_b - w.point_a, w.distance[:, None] * w.normal, atol=1e-12)
 
 
 def test_quick_start_has_two_commands_and_ci_reads_the_second():

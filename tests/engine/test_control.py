@@ -273,3 +273,27 @@ def test_empty_batch_gives_empty_results():
 def test_parallel_flag_is_a_bool():
     with pytest.raises(TypeError, match="parallel must be True, False or None"):
         _detach_one(parallel="no")
+
+
+def test_detach_from_a_distance_uses_where_the_bodies_really_touch():
+    """With a distance result, the contact is on a's boundary (never class 6), the direction is the
+    penetration normal, and pushing b out along it by the depth leaves the bodies touching."""
+    from prismbatch.distance import distance
+    from prismbatch.sampling import free_poses
+
+    rng = np.random.default_rng(7)
+    a, b = pb.Prism.regular(12, 2.0), pb.Prism.regular(9, 2.5)
+    P = free_poses(400, rng, radius=2.5)
+    d = distance(a, b, *P, witness=True)
+    res = detach(a, d, P[0], P[1], P[3], np.ones((400, 3)), tol=d.tol)
+    contact = d.status <= 0
+    assert contact.sum() > 50 and (~contact).sum() > 50
+    assert np.all(res.contact_class[~contact] == 0) and np.all(np.isnan(res.direction[~contact]))
+    assert np.all((res.contact_class[contact] >= 1) & (res.contact_class[contact] <= 5))
+    np.testing.assert_array_equal(res.direction[contact], d.normal[contact])
+    np.testing.assert_allclose(res.depth[contact], np.maximum(-d.distance[contact], 0.0))
+    pushed = P[2][contact] + res.depth[contact, None] * res.direction[contact]
+    after = distance(a, b, P[0][contact], P[1][contact], pushed, P[3][contact])
+    assert np.all(np.abs(after.distance) <= 10 * after.tol)
+    with pytest.raises(ValueError, match="witness=True"):
+        detach(a, distance(a, b, *P), P[0], P[1], P[3], np.ones((400, 3)))

@@ -1,0 +1,625 @@
+"""Signed distance between two semi-infinite convex prisms: 3-D GJK and EPA on O(log n) supports.
+
+Each pair is computed in world axes with the origin at a's end-face centre
+(positions differenced first, as in :func:`prismbatch._kernels.batch.pair_world`,
+so small objects far from the world origin keep their separation). With
+F_a, F_b the end faces and d_a, d_b the axes, A = F_a + ray(d_a) and
+B = F_b + ray(d_b), so the Minkowski difference is
+
+    D = A - B = K + C,   K = F_a - F_b,   C = cone(d_a, -d_b).
+
+The signed distance is dist(0, D) when 0 is outside D and minus
+dist(0, boundary of D) when inside. K is bounded and its support point
+costs two extreme-vertex searches (O(1) to O(log n),
+:func:`~prismbatch._kernels.planar.extreme_vertex`). C is cut to
+C_L = C ∩ box: in C's plane, with ẑ along d_a and ŝ across it towards -d_b,
+the box is 0 <= s <= L, |z| <= L, with L = 4 S (S = R_a + R_b + |c_b - c_a|).
+Every point of D within 3 S of the origin is a point k + c with |c| <= L, so
+the gap (at most S) and the depth (at most S) of D_L = K + C_L are those of D,
+and the coordinates stay below about 5 S for every angle between the axes: the
+tilt enters only as the s : z ratio of C_L's corners, never as a division.
+
+GJK gives the gap; when the origin is inside D_L (or within the accuracy), EPA
+expands a polytope inside D_L to the facet nearest the origin. The witness
+points come from one more GJK: the closest point of D_L to the foot point,
+whose simplex weights split it into a point of A and a point of B.
+"""
+
+import math
+
+import numpy as np
+from numba import prange
+
+from .batch import unpack
+from .jit import jit, twins
+from .planar import extreme_vertex
+
+SEPARATED, TOUCHING, PENETRATING = 1, 0, -1
+#: C_L's box half-width in units of the pair scale S (see the module docstring).
+BOX = 4.0
+#: Target accuracy of the distance as a fraction of the pair tolerance, floored at ACC_EPS float64 eps L.
+ACC_FRACTION = 1e-3
+ACC_EPS = 64.0
+#: Where rounding stops GJK short of that, a gap bracketed to within this fraction of the tolerance is kept.
+LOOSE_FRACTION = 0.1
+EPS64 = float(np.finfo(np.float64).eps)
+GJK_MAX_ITER = 128
+#: EPA's room in vertices: tried in turn while it runs out (128 hold 99.99 % of 3600-gon pairs; 100,000-gons
+#: need up to ~600); it has 8 faces per vertex.
+EPA_ROOM = (128, 1024, 8192)
+#: A face counts as seen from a new point up to this fraction of the accuracy below its plane: on nearly
+#: coplanar faces (100,000-gons) rounding would otherwise leave an unseen face inside the seen region.
+SEEN_SLACK = 1e-2
+#: Solver codes of a pair (the ``solver`` output): the gap by GJK; the depth by EPA; EPA stopped early
+#: (out of room at its largest, or a rounding-level step that would break its polytope: the depth
+#: returned is then an upper bound, the last face offset a lower one); no volume around the origin (touching).
+GJK_GAP, EPA_DEPTH, EPA_STOPPED, FLAT = 0, 1, 2, 3
+
+
+@jit(inline="always")
+def _cross(a, b):
+    return a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]
+
+
+@jit(inline="always")
+def _dot(a, b):
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+@jit(inline="always")
+def _sub(a, b):
+    return a[0] - b[0], a[1] - b[1], a[2] - b[2]
+
+
+@jit(inline="always")
+def _row(V, i):
+    return V[i, 0], V[i, 1], V[i, 2]
+
+
+@jit(inline="always")
+def _diff(V, i, j):
+    return _sub(_row(V, i), _row(V, j))
+
+
+# --- the support function of D_L = K + C_L ---------------------------------------------------------
+
+
+@jit
+def cone_box(dax, day, daz, ex, ey, ez, s, L):
+    """C_L = cone(d_a, -d_b) ∩ box, as a 22-tuple: ŝ (3), ẑ (3), vertex count, then (s, z, a) per vertex.
+
+    ``d_b = e + s d_a`` with ``s = +-1`` the sign of d_a.d_b; the caller forms
+    ``e`` as an exact difference, so nearly (anti)parallel axes keep the
+    direction of their tilt and identical ones give e = 0. A vertex is the
+    point s ŝ + z ẑ; ``a`` is its part along a's axis (the rest is along -d_b).
+    """
+    n = math.sqrt(dax * dax + day * day + daz * daz)
+    zx, zy, zz = dax / n, day / n, daz / n
+    ep = ex * zx + ey * zy + ez * zz
+    # -d_b across d_a is -(e across d_a): no cancellation between the nearly equal axes.
+    sx, sy, sz = -(ex - ep * zx), -(ey - ep * zy), -(ez - ep * zz)
+    rho = math.sqrt(sx * sx + sy * sy + sz * sz)
+    kap = -ep - s * n  # -d_b along d_a
+    if rho > 0.0:
+        sx, sy, sz = sx / rho, sy / rho, sz / rho
+    o = 0.0
+    if rho == 0.0 and kap > 0.0:  # antiparallel: a ray
+        return sx, sy, sz, zx, zy, zz, 2.0, o, o, o, o, L, L, o, o, o, o, o, o, o, o, o
+    if rho == 0.0:  # parallel: a line
+        return sx, sy, sz, zx, zy, zz, 2.0, o, -L, o, o, L, L, o, o, o, o, o, o, o, o, o
+    r = kap / rho
+    if kap >= rho:  # -d_b climbs steeply: it leaves the box through z = L
+        return sx, sy, sz, zx, zy, zz, 3.0, o, o, o, o, L, L, L / r, L, o, o, o, o, o, o, o
+    if kap >= -rho:  # it leaves through s = L
+        return sx, sy, sz, zx, zy, zz, 4.0, o, o, o, o, L, L, L, L, L - L * r, L, L * r, o, o, o, o
+    return sx, sy, sz, zx, zy, zz, 5.0, o, o, o, o, L, L, L, L, L - L * r, L, -L, -L - L * r, -L / r, -L, o
+
+
+@jit(inline="always")
+def _pt_a(avx, avy, sa, fr, ia):
+    """Vertex ia of F_a (relative to a's centre)."""
+    u = avx[sa + ia]
+    v = avy[sa + ia]
+    return fr[0] * u + fr[3] * v, fr[1] * u + fr[4] * v, fr[2] * u + fr[5] * v
+
+
+@jit(inline="always")
+def support(P, ix, fr, cone, ux, uy, uz):
+    """Support point of D_L in direction u and its pre-image: (x, y, z, ia, ib, kc).
+
+    ``P``: the polygon arrays (vx, vy, edge angles, edge tables of a, then of b); ``ix``:
+    (start, count) of a's and b's polygons; ``fr``: columns 0, 1 of R_a and R_b, then
+    c_b - c_a; ``cone``: :func:`cone_box`. The point is vertex ia of F_a minus
+    vertex ib of F_b plus corner kc of C_L.
+    """
+    avx, avy, aeang, aetab, bvx, bvy, beang, betab = P
+    sa, na, sb, nb = ix
+    ia = extreme_vertex(
+        avx, avy, aeang, aetab, sa, na, fr[0] * ux + fr[1] * uy + fr[2] * uz, fr[3] * ux + fr[4] * uy + fr[5] * uz
+    )
+    bu = fr[6] * ux + fr[7] * uy + fr[8] * uz
+    ib = extreme_vertex(bvx, bvy, beang, betab, sb, nb, -bu, -(fr[9] * ux + fr[10] * uy + fr[11] * uz))
+    us = cone[0] * ux + cone[1] * uy + cone[2] * uz
+    uz_ = cone[3] * ux + cone[4] * uy + cone[5] * uz
+    kc = 0
+    best = -math.inf
+    for k in range(int(cone[6])):
+        val = us * cone[7 + 3 * k] + uz_ * cone[8 + 3 * k]
+        if val > best:
+            best = val
+            kc = k
+    ax, ay, az = _pt_a(avx, avy, sa, fr, ia)
+    u = bvx[sb + ib]
+    v = bvy[sb + ib]
+    cs = cone[7 + 3 * kc]
+    cz = cone[8 + 3 * kc]
+    return (
+        ax - (fr[12] + fr[6] * u + fr[9] * v) + cs * cone[0] + cz * cone[3],
+        ay - (fr[13] + fr[7] * u + fr[10] * v) + cs * cone[1] + cz * cone[4],
+        az - (fr[14] + fr[8] * u + fr[11] * v) + cs * cone[2] + cz * cone[5],
+        ia,
+        ib,
+        kc,
+    )
+
+
+# --- closest point of a simplex to the origin (Ericson's Voronoi-region tests) ------------------------
+
+
+@jit(inline="always")
+def _foot(a, e):
+    """Foot of the perpendicular from the origin on the line a + t e, as e x (a x e) / |e|^2:
+    exact to rounding of the result, where a + t e loses eps |a| when the foot is near the origin."""
+    f = _cross(e, _cross(a, e))
+    ee = _dot(e, e)
+    return f[0] / ee, f[1] / ee, f[2] / ee
+
+
+@jit
+def _triangle(W, i, j, k):
+    """Closest point of triangle (W[i], W[j], W[k]) to the origin and its three weights (Ericson)."""
+    a, b, c = _row(W, i), _row(W, j), _row(W, k)
+    ab, ac = _sub(b, a), _sub(c, a)
+    d1, d2 = -_dot(ab, a), -_dot(ac, a)
+    if d1 <= 0.0 and d2 <= 0.0:
+        return a + (1.0, 0.0, 0.0)
+    d3, d4 = -_dot(ab, b), -_dot(ac, b)
+    if d3 >= 0.0 and d4 <= d3:
+        return b + (0.0, 1.0, 0.0)
+    vc = d1 * d4 - d3 * d2
+    if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
+        t = d1 / (d1 - d3)
+        return _foot(a, ab) + (1.0 - t, t, 0.0)
+    d5, d6 = -_dot(ab, c), -_dot(ac, c)
+    if d6 >= 0.0 and d5 <= d6:
+        return c + (0.0, 0.0, 1.0)
+    vb = d5 * d2 - d1 * d6
+    if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
+        t = d2 / (d2 - d6)
+        return _foot(a, ac) + (1.0 - t, 0.0, t)
+    va = d3 * d6 - d5 * d4
+    if va <= 0.0 and d4 - d3 >= 0.0 and d5 - d6 >= 0.0:
+        t = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        return _foot(b, _sub(c, b)) + (0.0, 1.0 - t, t)
+    n = _cross(ab, ac)
+    nn = _dot(n, n)
+    if not (va + vb + vc > 0.0 and nn > 0.0):  # degenerate (collinear): its nearest vertex
+        da, db, dc = _dot(a, a), _dot(b, b), _dot(c, c)
+        if da <= min(db, dc):
+            return a + (1.0, 0.0, 0.0)
+        return b + (0.0, 1.0, 0.0) if db <= dc else c + (0.0, 0.0, 1.0)
+    h = _dot(n, a) / nn  # along the normal: exact to rounding of the result
+    p = (h * n[0], h * n[1], h * n[2])
+    # Weights from the areas the foot cuts, differences taken at the foot: on a sliver (one far vertex)
+    # the dot products above lose them, and the weights must reproduce the foot for the witnesses.
+    wa = _dot(n, _cross(_sub(b, p), _sub(c, p)))
+    wb = _dot(n, _cross(_sub(c, p), _sub(a, p)))
+    wc = _dot(n, _cross(_sub(a, p), _sub(b, p)))
+    ws = wa + wb + wc
+    if not ws > 0.0:
+        den = va + vb + vc
+        return p + (va / den, vb / den, vc / den)
+    return p + (max(wa, 0.0) / ws, max(wb, 0.0) / ws, max(wc, 0.0) / ws)
+
+
+_FACES = ((0, 1, 2, 3), (0, 3, 1, 2), (0, 2, 3, 1), (1, 3, 2, 0))  # three vertices of a face, then the fourth
+
+
+@jit(inline="always")
+def _compact(W, I, lam, m):
+    """Keep the rows of W, I, lam with positive weight (in place, in order); their number."""
+    k = 0
+    for j in range(m):
+        if lam[j] > 0.0:
+            W[k] = W[j]
+            I[k] = I[j]
+            lam[k] = lam[j]
+            k += 1
+    return k
+
+
+@jit(inline="always")
+def closest(W, I, lam, m):
+    """Closest point of conv(W[:m]) to the origin; keeps only the vertices that carry it.
+
+    Returns (m', vx, vy, vz, inside, face): ``lam[:m']`` are the weights, W and I
+    are compacted in place. ``inside``: the origin lies in the tetrahedron
+    (m = 4); W, I are then left whole, v and ``lam`` describe the nearest point
+    of its boundary (stable weights for a point on the boundary, which Cramer's
+    rule on a sliver is not), and ``face`` is its distance (else 0).
+    """
+    for j in range(4):
+        lam[j] = 0.0
+    if m == 1:
+        p = _row(W, 0)
+        lam[0] = 1.0
+    elif m == 2:
+        a, e = _row(W, 0), _diff(W, 1, 0)
+        ee = _dot(e, e)
+        t = min(max(-_dot(a, e) / ee, 0.0), 1.0) if ee > 0.0 else 0.0
+        lam[0], lam[1] = 1.0 - t, t
+        p = _row(W, 1) if t == 1.0 else (a if t == 0.0 else _foot(a, e))
+    elif m == 3:
+        px, py, pz, lam[0], lam[1], lam[2] = _triangle(W, 0, 1, 2)
+        p = (px, py, pz)
+    else:
+        best = math.inf
+        inside = True
+        p = (0.0, 0.0, 0.0)
+        for sweep in range(2):  # the faces the origin is beyond; if none, it is inside: all faces
+            for f in range(4):
+                i, j, k, l = _FACES[f]
+                n = _cross(_diff(W, j, i), _diff(W, k, i))
+                if sweep == 1 or -_dot(n, _row(W, i)) * _dot(n, _diff(W, l, i)) <= 0.0:
+                    inside = sweep == 1
+                    qx, qy, qz, li, lj, lk = _triangle(W, i, j, k)
+                    if qx * qx + qy * qy + qz * qz < best:
+                        best = qx * qx + qy * qy + qz * qz
+                        p = (qx, qy, qz)
+                        for c in range(4):
+                            lam[c] = 0.0
+                        lam[i], lam[j], lam[k] = li, lj, lk
+            if best < math.inf:
+                break
+        if inside:
+            return 4, p[0], p[1], p[2], True, math.sqrt(best)
+    return _compact(W, I, lam, m), p[0], p[1], p[2], False, 0.0
+
+
+# --- GJK and EPA ---------------------------------------------------------------------------------
+
+
+@jit
+def gjk(P, ix, fr, cone, ox, oy, oz, acc, loose, W, I, lam):
+    """Closest point of D_L to o: GJK on the support function.
+
+    Returns (m, vx, vy, vz, inside): v = closest point - o, the simplex in
+    ``W[:m]`` (points minus o), ``I[:m]`` (pre-images ia, ib, kc) and
+    ``lam[:m]`` (weights). ``inside``: o lies in D_L or within ``acc`` of it, or
+    GJK stopped (rounding, or its iteration cap) without showing a gap to within
+    ``loose``; the distance is then not resolved and EPA takes over; the simplex is then a
+    tetrahedron around o, or, when o is within ``acc`` of the simplex's boundary,
+    the simplex of the nearest boundary point (v is that point - o). Otherwise
+    |v| is the distance, to within ``acc`` (or, where rounding stopped GJK, to
+    within ``loose``: rounding on the slivers of 100,000-gons leaves about 1e-10 |v|).
+    """
+    ux, uy, uz = fr[12], fr[13], fr[14]
+    if ux == 0.0 and uy == 0.0 and uz == 0.0:
+        ux = 1.0
+    x, y, z, ia, ib, kc = support(P, ix, fr, cone, ux, uy, uz)
+    W[0, 0], W[0, 1], W[0, 2] = x - ox, y - oy, z - oz
+    I[0, 0], I[0, 1], I[0, 2] = ia, ib, kc
+    lam[0] = 1.0
+    m = 1
+    vx, vy, vz = W[0, 0], W[0, 1], W[0, 2]
+    lower = 0.0
+    for _ in range(GJK_MAX_ITER):
+        vn = math.sqrt(vx * vx + vy * vy + vz * vz)
+        if vn <= acc:
+            return m, vx, vy, vz, True
+        x, y, z, ia, ib, kc = support(P, ix, fr, cone, -vx, -vy, -vz)
+        wx, wy, wz = x - ox, y - oy, z - oz
+        lower = max(lower, (vx * wx + vy * wy + vz * wz) / vn)
+        if vn - lower <= acc:
+            return m, vx, vy, vz, False
+        for j in range(m):
+            if I[j, 0] == ia and I[j, 1] == ib and I[j, 2] == kc:  # no progress: converged to rounding
+                return m, vx, vy, vz, lower <= acc or vn - lower > loose
+        W[4 : 4 + m] = W[:m]  # kept: on slivers rounding can misjudge the faces and lose much ground
+        I[4 : 4 + m] = I[:m]
+        lam[4 : 4 + m] = lam[:m]
+        m0, vx0, vy0, vz0 = m, vx, vy, vz
+        vv0 = vx * vx + vy * vy + vz * vz
+        W[m, 0], W[m, 1], W[m, 2] = wx, wy, wz
+        I[m, 0], I[m, 1], I[m, 2] = ia, ib, kc
+        m, vx, vy, vz, inside, face = closest(W, I, lam, m + 1)
+        if not inside and vx * vx + vy * vy + vz * vz > 2.0 * vv0:  # lost ground: back to the last simplex
+            m = m0
+            W[:m] = W[4 : 4 + m]
+            I[:m] = I[4 : 4 + m]
+            lam[:m] = lam[4 : 4 + m]
+            return m, vx0, vy0, vz0, lower <= acc or vn - lower > loose  # a gap if one is shown, else EPA decides
+        if inside:
+            if face > acc:
+                return 4, 0.0, 0.0, 0.0, True
+            return _compact(W, I, lam, 4), vx, vy, vz, True  # o on the boundary (the witness pass)
+    return m, vx, vy, vz, lower <= acc or vn - lower > loose
+
+
+@jit
+def _off_hull(V, cnt, p):
+    """Distance of p from the affine hull of V[:cnt] (cnt = 1, 2, 3)."""
+    d = _sub(p, _row(V, 0))
+    if cnt == 1:
+        return math.sqrt(_dot(d, d))
+    e = _diff(V, 1, 0)
+    if cnt == 2:
+        c = _cross(d, e)
+        return math.sqrt(_dot(c, c) / _dot(e, e))
+    n = _cross(e, _diff(V, 2, 0))
+    return abs(_dot(n, d)) / math.sqrt(_dot(n, n))
+
+
+@jit
+def _tetrahedron(P, ix, fr, cone, W, I, m, V, VI, tiny):
+    """GJK's simplex grown to a positively oriented tetrahedron in V, VI by support points off its
+    affine hull (searched along the axes; across a segment; along a triangle's normal). Returns
+    (ok, nx, ny, nz): when no point lies more than ``tiny`` off, the hull is flat and n is across it."""
+    cnt = 0
+    for j in range(m):
+        if cnt == 0 or _off_hull(V, cnt, _row(W, j)) > tiny:
+            V[cnt], VI[cnt] = W[j], I[j]
+            cnt += 1
+    g = (1.0, 0.0, 0.0)
+    while cnt < 4:
+        e, f = _diff(V, 1, 0), _diff(V, 2, 0)
+        if cnt == 2:  # f: a vector across e
+            ax = abs(e[0]) <= abs(e[1]) and abs(e[0]) <= abs(e[2])
+            f = (0.0, e[2], -e[1]) if ax else ((-e[2], 0.0, e[0]) if abs(e[1]) <= abs(e[2]) else (e[1], -e[0], 0.0))
+        if cnt > 1:
+            g = _cross(e, f)
+        best = tiny
+        for t in range(6 if cnt == 1 else (4 if cnt == 2 else 2)):
+            sg = 1.0 if t % 2 == 0 else -1.0
+            if cnt == 1:
+                d = ((sg if t < 2 else 0.0), (sg if 2 <= t < 4 else 0.0), (sg if t >= 4 else 0.0))
+            else:
+                d = (sg * f[0], sg * f[1], sg * f[2]) if cnt == 2 and t < 2 else (sg * g[0], sg * g[1], sg * g[2])
+            x, y, z, ia, ib, kc = support(P, ix, fr, cone, d[0], d[1], d[2])
+            off = _off_hull(V, cnt, (x, y, z))
+            if off > best:
+                best = off
+                V[cnt, 0], V[cnt, 1], V[cnt, 2] = x, y, z
+                VI[cnt, 0], VI[cnt, 1], VI[cnt, 2] = ia, ib, kc
+        if best <= tiny:
+            gn = math.sqrt(_dot(g, g))
+            return False, g[0] / gn, g[1] / gn, g[2] / gn
+        cnt += 1
+    if _dot(_cross(_diff(V, 1, 0), _diff(V, 2, 0)), _diff(V, 3, 0)) < 0.0:  # orient: (1 - 0) x (2 - 0) towards 3
+        for c in range(3):
+            V[1, c], V[2, c] = V[2, c], V[1, c]
+            VI[1, c], VI[2, c] = VI[2, c], VI[1, c]
+    return True, 0.0, 0.0, 0.0
+
+
+@jit
+def _set_face(V, FV, FN, FG, f, i, j, k):
+    """Face f = (V[i], V[j], V[k]), counter-clockwise seen from outside: unit normal and offset."""
+    FV[f, 0], FV[f, 1], FV[f, 2] = i, j, k
+    u, v = _diff(V, j, i), _diff(V, k, i)
+    n = _cross(u, v)
+    nn = math.sqrt(_dot(n, n))
+    FG[f] = nn > 1e-13 * math.sqrt(_dot(u, u) * _dot(v, v))  # slivers: no trustworthy normal, never expanded
+    if nn > 0.0:
+        n = (n[0] / nn, n[1] / nn, n[2] / nn)
+    FN[f, 0], FN[f, 1], FN[f, 2] = n
+    FN[f, 3] = (_dot(n, _row(V, i)) + _dot(n, _row(V, j)) + _dot(n, _row(V, k))) / 3.0
+
+
+@jit
+def epa(P, ix, fr, cone, W, I, m, acc, MV):
+    """Penetration depth of D_L from GJK's final simplex: (depth, nx, ny, nz, code).
+
+    The simplex (whose hull holds the origin, to within ``acc``) is grown to a
+    tetrahedron, then expanded towards the face nearest the origin until the
+    support in that face's normal n lies within ``acc`` of the face. The depth
+    returned is h_D(n), the support value (within ``acc`` above the face offset,
+    a lower bound); ``n`` points out of D. ``code``: EPA_DEPTH; EPA_STOPPED (out
+    of room, ``MV`` vertices, or a step that would break the polytope); FLAT (no tetrahedron:
+    D_L lies within ``acc`` of a plane through the origin; depth 0, n across it).
+    """
+    MF = 8 * MV
+    V = np.empty((MV, 3))
+    VI = np.empty((MV, 3), dtype=np.int64)
+    ok, nx, ny, nz = _tetrahedron(P, ix, fr, cone, W, I, m, V, VI, acc)
+    if not ok:
+        return 0.0, nx, ny, nz, FLAT
+    FV = np.empty((MF, 3), dtype=np.int64)
+    FA = np.empty((MF, 3), dtype=np.int64)  # FA[f, e]: the face across edge e (FV[f, e] -> FV[f, e + 1])
+    FN = np.empty((MF, 4))
+    FG = np.empty(MF, dtype=np.bool_)
+    alive = np.zeros(MF, dtype=np.bool_)
+    for f, (i, j, k) in enumerate(((0, 2, 1), (0, 1, 3), (1, 2, 3), (0, 3, 2))):
+        _set_face(V, FV, FN, FG, f, i, j, k)
+        alive[f] = True
+    for f in range(4):  # neighbours: the face holding the reversed edge
+        for e in range(3):
+            for g in range(4):
+                for e2 in range(3):
+                    if FV[g, e2] == FV[f, (e + 1) % 3] and FV[g, (e2 + 1) % 3] == FV[f, e]:
+                        FA[f, e] = g
+    nf, nv = 4, 4
+    stack = np.empty((2 * MF + 3, 2), dtype=np.int64)  # (face, edge) to cross
+    hor = np.empty((MF, 4), dtype=np.int64)  # horizon edge (a, b), the face beyond and its edge index
+    start = np.full(MV, -1, dtype=np.int64)  # new face whose horizon edge starts at a vertex
+    bh, bx, by, bz = math.inf, 1.0, 0.0, 0.0  # the least support value of a face set aside (an upper bound)
+    while True:
+        f = -1
+        dmin = math.inf
+        for g in range(nf):
+            if alive[g] and FG[g] and FN[g, 3] < dmin:
+                dmin = FN[g, 3]
+                f = g
+        if f < 0:
+            return (bh, bx, by, bz, EPA_DEPTH) if bh < math.inf else (0.0, 1.0, 0.0, 0.0, FLAT)
+        nx, ny, nz = FN[f, 0], FN[f, 1], FN[f, 2]
+        x, y, z, ia, ib, kc = support(P, ix, fr, cone, nx, ny, nz)
+        hw = nx * x + ny * y + nz * z
+        if hw > bh:
+            hw, nx, ny, nz = bh, bx, by, bz
+        if hw - dmin <= acc:
+            return hw, nx, ny, nz, EPA_DEPTH
+        if nv == MV:
+            return hw, nx, ny, nz, EPA_STOPPED
+        stuck = False
+        for c in range(3):
+            v = FV[f, c]
+            stuck |= VI[v, 0] == ia and VI[v, 1] == ib and VI[v, 2] == kc
+        if stuck:  # no new vertex, yet short of the support: a sliver's normal is off; set the face aside
+            bh, bx, by, bz = hw, nx, ny, nz
+            FG[f] = False
+            continue
+        iv = nv
+        V[iv, 0], V[iv, 1], V[iv, 2] = x, y, z
+        VI[iv, 0], VI[iv, 1], VI[iv, 2] = ia, ib, kc
+        nv += 1
+        # Faces seen from the new point, by a walk from f; their rim is the horizon.
+        alive[f] = False
+        for sp, e in enumerate((2, 1, 0)):
+            stack[sp, 0], stack[sp, 1] = f, e
+        sp = 3
+        nh = 0
+        while sp > 0:
+            sp -= 1
+            g, e = stack[sp, 0], stack[sp, 1]
+            h = FA[g, e]
+            if not alive[h]:
+                continue
+            k = 0
+            while FA[h, k] != g:
+                k += 1
+            if FN[h, 0] * x + FN[h, 1] * y + FN[h, 2] * z > FN[h, 3] - SEEN_SLACK * acc:
+                alive[h] = False
+                stack[sp, 0], stack[sp, 1] = h, (k + 2) % 3
+                stack[sp + 1, 0], stack[sp + 1, 1] = h, (k + 1) % 3
+                sp += 2
+            else:
+                hor[nh, 0], hor[nh, 1], hor[nh, 2], hor[nh, 3] = FV[g, e], FV[g, (e + 1) % 3], h, k
+                nh += 1
+        if nf + nh > MF:
+            return hw, nx, ny, nz, EPA_STOPPED
+        ok = True
+        for t in range(nh):  # new faces (a, b, new point), linked to the faces beyond and to each other
+            g = nf + t
+            _set_face(V, FV, FN, FG, g, hor[t, 0], hor[t, 1], iv)
+            alive[g] = True
+            FA[g, 0] = hor[t, 2]
+            FA[hor[t, 2], hor[t, 3]] = g
+            ok &= start[hor[t, 0]] < 0  # else the seen region is no disc (rounding): stop here
+            start[hor[t, 0]] = g
+        for t in range(nh):
+            g = nf + t
+            j = start[hor[t, 1]]
+            ok &= j >= 0
+            j = j if j >= 0 else g
+            FA[g, 1] = j
+            FA[j, 2] = g
+        for t in range(nh):
+            start[hor[t, 0]] = -1
+        nf += nh
+        if not ok:
+            return hw, nx, ny, nz, EPA_STOPPED
+
+
+# --- one pair, and the batch loop -----------------------------------------------------------------
+
+
+@jit
+def pair_distance(P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, rtol, atol, eps, witness, W, I, lam):
+    """One pair: (signed distance, tol, solver code, normal, point_a), world coordinates.
+
+    ``P``, ``ix``: as :func:`support`; ``ca``, ``cb``: the polygons' centres in
+    their local frames; ``ra``, ``rb``: their radii. ``W``, ``I``, ``lam``: GJK
+    workspace (8 x 3, 8 x 3 int, 8). The normal (3-tuple) points from a to b,
+    point_b = point_a + distance * normal; both NaN unless ``witness``.
+    """
+    ox = Pa[0] + Ra[0, 0] * ca[0] + Ra[0, 1] * ca[1]
+    oy = Pa[1] + Ra[1, 0] * ca[0] + Ra[1, 1] * ca[1]
+    oz = Pa[2] + Ra[2, 0] * ca[0] + Ra[2, 1] * ca[1]
+    # c_b - c_a, differences first (see batch.pair_world).
+    dx = (Pb[0] - Pa[0]) + ((Rb[0, 0] * cb[0] + Rb[0, 1] * cb[1]) - (Ra[0, 0] * ca[0] + Ra[0, 1] * ca[1]))
+    dy = (Pb[1] - Pa[1]) + ((Rb[1, 0] * cb[0] + Rb[1, 1] * cb[1]) - (Ra[1, 0] * ca[0] + Ra[1, 1] * ca[1]))
+    dz = (Pb[2] - Pa[2]) + ((Rb[2, 0] * cb[0] + Rb[2, 1] * cb[1]) - (Ra[2, 0] * ca[0] + Ra[2, 1] * ca[1]))
+    S = ra + rb + math.sqrt(dx * dx + dy * dy + dz * dz)
+    # The pair tolerance of collide (batch.pair_world).
+    far = math.sqrt(ox * ox + oy * oy + oz * oz) + math.sqrt((dx + ox) ** 2 + (dy + oy) ** 2 + (dz + oz) ** 2)
+    tol = atol + rtol * S + 4.0 * eps * far
+    L = BOX * S
+    acc = max(ACC_FRACTION * tol, ACC_EPS * EPS64 * L)
+    loose = max(LOOSE_FRACTION * tol, acc)
+    fr = (Ra[0, 0], Ra[1, 0], Ra[2, 0], Ra[0, 1], Ra[1, 1], Ra[2, 1])
+    fr = fr + (Rb[0, 0], Rb[1, 0], Rb[2, 0], Rb[0, 1], Rb[1, 1], Rb[2, 1], dx, dy, dz)
+    s = 1.0 if Ra[0, 2] * Rb[0, 2] + Ra[1, 2] * Rb[1, 2] + Ra[2, 2] * Rb[2, 2] >= 0.0 else -1.0
+    ex, ey, ez = Rb[0, 2] - s * Ra[0, 2], Rb[1, 2] - s * Ra[1, 2], Rb[2, 2] - s * Ra[2, 2]  # exact
+    dax, day, daz = np.float64(Ra[0, 2]), np.float64(Ra[1, 2]), np.float64(Ra[2, 2])  # float64 for float32 data
+    cone = cone_box(dax, day, daz, ex, ey, ez, s, L)
+    m, vx, vy, vz, inside = gjk(P, ix, fr, cone, 0.0, 0.0, 0.0, acc, loose, W, I, lam)
+    code = GJK_GAP
+    if not inside:
+        dist = math.sqrt(vx * vx + vy * vy + vz * vz)
+        nx, ny, nz = -vx / dist, -vy / dist, -vz / dist
+    else:
+        for room in EPA_ROOM:  # more room only for the rare pair that needs it
+            depth, nx, ny, nz, code = epa(P, ix, fr, cone, W, I, m, acc, room)
+            if code != EPA_STOPPED:
+                break
+        dist = -depth
+    nan = math.nan
+    if not witness:
+        return dist, tol, code, (nan, nan, nan), (nan, nan, nan)
+    if inside:  # split the foot point -dist n (on D's boundary, to within acc) into A and B
+        m, vx, vy, vz, _ = gjk(P, ix, fr, cone, -dist * nx, -dist * ny, -dist * nz, acc, loose, W, I, lam)
+    px, py, pz = ox, oy, oz
+    for j in range(m):
+        qx, qy, qz = _pt_a(P[0], P[1], ix[0], fr, I[j, 0])
+        al = cone[9 + 3 * I[j, 2]]  # the part of C_L's corner along a's axis
+        px += lam[j] * (qx + al * cone[3])
+        py += lam[j] * (qy + al * cone[4])
+        pz += lam[j] * (qz + al * cone[5])
+    return dist, tol, code, (nx, ny, nz), (px, py, pz)
+
+
+def _distance_loop(a_floats, a_ints, b_floats, b_ints, poses, rtol, atol, eps, witness, out, wit):
+    """Every pair of a batch; ``poses``: (pos_a, rot_a, pos_b, rot_b), each of N or 1 rows;
+    ``out``: (distance, status, tol, solver), N each; ``wit``: (normal, point_a, point_b), N x 3 or 0 x 3."""
+    avx, avy, aeang, aetab, _, _, aoff, arad, acen = unpack(a_floats, a_ints)
+    bvx, bvy, beang, betab, _, _, boff, brad, bcen = unpack(b_floats, b_ints)
+    P = (avx, avy, aeang, aetab, bvx, bvy, beang, betab)
+    pos_a, rot_a, pos_b, rot_b = poses
+    dist_out, status_out, tol_out, solver_out = out
+    normal_out, pa_out, pb_out = wit
+    npa, nra, npb, nrb = pos_a.shape[0], rot_a.shape[0], pos_b.shape[0], rot_b.shape[0]
+    nsa, nsb = arad.shape[0], brad.shape[0]
+    for ip in prange(dist_out.shape[0]):
+        i = np.int64(ip)  # prange's index is unsigned
+        ka, kb = min(i, nsa - 1), min(i, nsb - 1)  # a batch of one broadcasts
+        ix = (aoff[ka], aoff[ka + 1] - aoff[ka], boff[kb], boff[kb + 1] - boff[kb])
+        W = np.empty((8, 3))  # GJK's simplex, and a copy of the last one
+        I = np.empty((8, 3), dtype=np.int64)
+        lam = np.empty(8)
+        Pa, Ra, Pb, Rb = pos_a[min(i, npa - 1)], rot_a[min(i, nra - 1)], pos_b[min(i, npb - 1)], rot_b[min(i, nrb - 1)]
+        d, t, code, n, p = pair_distance(
+            P, ix, acen[ka], bcen[kb], arad[ka], brad[kb], Pa, Ra, Pb, Rb, rtol, atol, eps, witness, W, I, lam
+        )
+        dist_out[i] = d
+        tol_out[i] = t
+        status_out[i] = TOUCHING if abs(d) <= t else (SEPARATED if d > t else PENETRATING)
+        solver_out[i] = code
+        if witness:
+            for c in range(3):
+                normal_out[i, c] = n[c]
+                pa_out[i, c] = p[c]
+                pb_out[i, c] = p[c] + d * n[c]
+
+
+distance_serial, distance_parallel = twins(_distance_loop, "distance", error_model="numpy")

@@ -1,0 +1,244 @@
+"""Signed distance between two convex semi-infinite prisms: :func:`distance`.
+
+The gap when the bodies are apart, minus the penetration depth (the shortest
+translation of b that leaves the bodies touching) when they overlap, with the
+touching tolerance of :func:`~prismbatch.collide` and, on request, the
+direction and the two points that realise it. The method (3-D GJK and EPA on
+the Minkowski difference, whose unbounded part is cut where it cannot matter)
+is in :mod:`prismbatch._kernels.distance` and ``docs/methods/distance.md``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ._kernels.batch import use_parallel
+from ._kernels.distance import (
+    EPA_DEPTH,
+    EPA_STOPPED,
+    FLAT,
+    GJK_GAP,
+    PENETRATING,
+    SEPARATED,
+    TOUCHING,
+    distance_parallel,
+    distance_serial,
+)
+from ._kernels.jit import first_call
+from .collide import Collider
+from .poses import as_pose, check_flag, common_batch_size, transforms_as_written
+
+__all__ = ["distance", "signed_distance", "DistanceResult", "STATUS", "SOLVERS", "SEPARATED", "TOUCHING", "PENETRATING"]
+
+#: Meaning of :attr:`DistanceResult.status`.
+STATUS = {
+    SEPARATED: "separated: distance > tol",
+    TOUCHING: "touching: |distance| <= tol",
+    PENETRATING: "penetrating: distance < -tol",
+}
+
+#: Meaning of :attr:`DistanceResult.solver`.
+SOLVERS = {
+    GJK_GAP: "GJK: the gap, to 1e-3 tol (0.1 tol where rounding on very fine polygons stops GJK short)",
+    EPA_DEPTH: "EPA: the depth, to 1e-3 tol",
+    EPA_STOPPED: "EPA stopped early (out of room, or rounding): the depth reported is an upper bound",
+    FLAT: "the Minkowski difference is flat around the origin: touching, to 1e-3 tol",
+}
+
+
+@dataclass(frozen=True)
+class DistanceResult:
+    """Result of :func:`distance` for ``N`` pose pairs.
+
+    Attributes
+    ----------
+    distance : numpy.ndarray, shape (N,)
+        Signed distance: the Euclidean gap when positive, minus the
+        penetration depth (the length of the shortest translation of b that
+        leaves the bodies touching) when negative.
+    status : numpy.ndarray of int8, shape (N,)
+        :data:`SEPARATED` (1), :data:`TOUCHING` (0, ``|distance| <= tol``) or
+        :data:`PENETRATING` (-1); see :data:`STATUS`.
+    tol : numpy.ndarray, shape (N,)
+        Each pair's touching tolerance, the one :func:`~prismbatch.collide` uses.
+    solver : numpy.ndarray of int8, shape (N,)
+        Which computation gave the value (see :data:`SOLVERS`).
+    """
+
+    distance: np.ndarray
+    status: np.ndarray
+    tol: np.ndarray
+    solver: np.ndarray
+    _normal: np.ndarray | None = None
+    _point_a: np.ndarray | None = None
+    _point_b: np.ndarray | None = None
+
+    def _witness(self, name):
+        value = getattr(self, "_" + name)
+        if value is None:
+            raise AttributeError(f"{name} was not computed: call distance(..., witness=True)")
+        return value
+
+    @property
+    def normal(self) -> np.ndarray:
+        """(N, 3) unit direction from a towards b: moving b by ``-distance * normal`` leaves
+        the bodies touching (with ``witness=True`` only)."""
+        return self._witness("normal")
+
+    @property
+    def point_a(self) -> np.ndarray:
+        """(N, 3) a point on a's boundary where the distance is realised (``witness=True``)."""
+        return self._witness("point_a")
+
+    @property
+    def point_b(self) -> np.ndarray:
+        """(N, 3) the matching point on b's boundary, ``point_a + distance * normal`` (``witness=True``)."""
+        return self._witness("point_b")
+
+    def __len__(self):
+        return self.distance.shape[0]
+
+    def __getitem__(self, k):
+        """The result of some pairs (an index, a slice, an index array or a boolean mask;
+        an integer keeps a batch of one)."""
+        if isinstance(k, (int, np.integer)):
+            n = len(self)
+            if not -n <= k < n:
+                raise IndexError(f"pair {k} is out of range for {n} pairs")
+            k = slice(k, k + 1 if k != -1 else None)
+        pick = lambda x: None if x is None else x[k]
+        return DistanceResult(
+            self.distance[k],
+            self.status[k],
+            self.tol[k],
+            self.solver[k],
+            pick(self._normal),
+            pick(self._point_a),
+            pick(self._point_b),
+        )
+
+    def __repr__(self):
+        n = len(self)
+        counts = {STATUS[s].split(":")[0]: int(np.count_nonzero(self.status == s)) for s in STATUS}
+        extra = ", with witnesses" if self._normal is not None else ""
+        return f"DistanceResult({n} pair{'s' * (n != 1)}{extra}; {counts})"
+
+    def columns(self) -> dict:
+        """The result as named 1-D columns (``pandas.DataFrame(result.columns())`` takes them)."""
+        out = {"distance": self.distance, "status": self.status, "tol": self.tol, "solver": self.solver}
+        if self._normal is not None:
+            for name, arr in (("normal", self._normal), ("point_a", self._point_a), ("point_b", self._point_b)):
+                out.update({f"{name}_{c}": arr[:, j] for j, c in enumerate("xyz")})
+        return out
+
+
+def distance(
+    shape_a,
+    shape_b,
+    pos_a,
+    rot_a=None,
+    pos_b=None,
+    rot_b=None,
+    *,
+    witness=False,
+    quat_order=None,
+    rtol=None,
+    atol=0.0,
+    dtype=np.float64,
+    parallel=None,
+):
+    """Signed distance between two convex semi-infinite prisms for a batch of poses.
+
+    Parameters
+    ----------
+    shape_a, shape_b, pos_a, rot_a, pos_b, rot_b, quat_order, rtol, atol, dtype, parallel
+        As for :func:`~prismbatch.collide`: the same shapes, pose forms,
+        broadcasting, tolerance and threading.
+    witness : bool, optional
+        Also compute ``normal``, ``point_a`` and ``point_b``.
+
+    Returns
+    -------
+    DistanceResult
+        ``distance`` (N,), ``status`` (N,) int8, ``tol`` (N,), ``solver``
+        (N,) int8 and, with ``witness=True``, ``normal``, ``point_a`` and
+        ``point_b`` (N, 3) in world coordinates, with
+        ``point_b - point_a = distance * normal``.
+
+    Notes
+    -----
+    The value is accurate to about 1e-3 of the pair's tolerance (0.1 of it
+    where rounding stops GJK short on very fine polygons, about 1e5 vertices),
+    and to float64 rounding of the scene's size. Where the bodies are nearly
+    parallel, point the same way and meet (or pass) far from both end faces,
+    the witness points lie there, at about gap / tilt, and are accurate only to
+    the rounding of their own coordinates; the distance and normal are not
+    affected.
+
+    Raises
+    ------
+    TypeError, ValueError
+        Bad shapes, poses, tolerances or batch sizes, as :func:`~prismbatch.collide`.
+
+    Examples
+    --------
+    >>> import numpy as np, prismbatch as pb
+    >>> from prismbatch.distance import distance
+    >>> a, b = pb.Prism.regular(4, 1.0), pb.Prism.regular(4, 1.0)
+    >>> down = np.diag([1.0, -1.0, -1.0])          # a's axis points down, b's up
+    >>> r = distance(a, b, [0, 0, 0], down, [[0, 0, 0.5], [0, 0, -0.25]], np.eye(3))
+    >>> r.distance.round(12).tolist(), r.status.tolist()
+    ([0.5, -0.25], [1, -1])
+    """
+    col = Collider(shape_a, shape_b, rtol=rtol, atol=atol, dtype=dtype)  # checks and packs the shapes once
+    return col.distance(pos_a, rot_a, pos_b, rot_b, witness=witness, quat_order=quat_order, parallel=parallel)
+
+
+def signed_distance(
+    a_arrays, b_arrays, n_shapes, pos_a, rot_a, pos_b, rot_b, *, rtol, atol, dtype, witness, quat_order, parallel
+):
+    """:func:`distance` for shapes already checked and packed (what a :class:`~prismbatch.Collider` holds).
+
+    Parameters
+    ----------
+    a_arrays, b_arrays : PrismArrays
+        ``PrismSet.kernel_arrays(dtype)`` of each shape.
+    n_shapes : int or None
+        Number of per-pair shapes (None when both are single prisms).
+    pos_a, rot_a, pos_b, rot_b, witness, quat_order, parallel
+        As :func:`distance`.
+    rtol, atol : float
+        Checked tolerances.
+    dtype : numpy.dtype
+        float64 or float32.
+
+    Returns
+    -------
+    DistanceResult
+    """
+    pos_a, rot_a, pos_b, rot_b = transforms_as_written(pos_a, rot_a, pos_b, rot_b)
+    if pos_b is None:
+        raise TypeError("distance needs a pose for b: pos_b (and rot_b, or a 4x4 transform as pos_b)")
+    check_flag(witness, "witness")
+    check_flag(parallel, "parallel", allow_none=True)
+    pa, ra = as_pose(pos_a, rot_a, quat_order=quat_order, name="a", dtype=dtype)
+    pb, rb = as_pose(pos_b, rot_b, quat_order=quat_order, name="b", dtype=dtype)
+    n = common_batch_size(pa, ra, pb, rb, n_shapes=n_shapes)
+    # C-contiguous and writeable: Numba types read-only arrays apart (another compile).
+    pa, pb = (np.require(np.reshape(x, (-1, 3)), dtype, ["C", "W"]) for x in (pa, pb))
+    ra, rb = (np.require(np.reshape(x, (-1, 3, 3)), dtype, ["C", "W"]) for x in (ra, rb))
+    dist = np.empty(n)
+    status = np.empty(n, dtype=np.int8)
+    tol = np.empty(n)
+    solver = np.empty(n, dtype=np.int8)
+    k = n if witness else 0  # status-only calls write no witnesses
+    normal, point_a, point_b = np.empty((k, 3)), np.empty((k, 3)), np.empty((k, 3))
+    kern = distance_parallel if use_parallel(parallel, n) else distance_serial
+    args = (a_arrays.floats, a_arrays.ints, b_arrays.floats, b_arrays.ints, (pa, ra, pb, rb), float(rtol))
+    args += (float(atol), float(np.finfo(dtype).eps), bool(witness), (dist, status, tol, solver))
+    first_call((kern, np.dtype(dtype)), kern, *args, (normal, point_a, point_b))
+    if not witness:
+        return DistanceResult(dist, status, tol, solver)
+    return DistanceResult(dist, status, tol, solver, normal, point_a, point_b)

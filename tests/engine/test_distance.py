@@ -1,0 +1,446 @@
+"""``prismbatch.distance``: the signed distance of two semi-infinite prisms, against independent references.
+
+The references (``tests/distance_reference.py``) share no code with the kernels: the separating-axis
+value over every candidate axis (exactly minus the depth when the bodies overlap), the gap by brute
+force over feature pairs, and a QP by HiGHS with its optimality certificate. Every comparison is in
+units of the pair tolerance ``tol`` (the one ``collide`` uses); the contract checked is
+
+* ``|distance - reference| <= 10 tol``;
+* witnesses: ``normal`` unit, ``point_b - point_a = distance * normal``, both points on their
+  body's boundary to within tol (the half-space residual);
+* the sign agrees with ``collide(...).hit`` outside the touching band ``|reference| <= 2 tol``;
+* status: 1 beyond tol, 0 within it, -1 below -tol.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from scipy.spatial.transform import Rotation
+
+import prismbatch as pb
+from prismbatch.collide import pair_scale_tolerance
+from prismbatch.distance import PENETRATING, SEPARATED, TOUCHING, DistanceResult, distance
+
+from distance_reference import Body, gap_features, gap_qp, residual, sat_separation
+from helpers import (
+    bisect_to_contact,
+    make_pairs,
+    overlapping_pairs,
+    pairs_from_rows,
+    perpendicular_pairs,
+    polygon_centre,
+    polygon_radius,
+    random_polygon,
+    random_rotations,
+    rot_z,
+    sample_vertex_count,
+    separating_directions,
+    vertical_pairs,
+)
+
+EPS = np.finfo(np.float64).eps
+R_DOWN = np.diag([1.0, -1.0, -1.0])
+
+
+def run(d, pos_b=None, **kw):
+    """``distance`` with witnesses on PairData ``d`` (b moved to ``pos_b`` if given)."""
+    sa, sb = pb.PrismSet(d.polys_a), pb.PrismSet(d.polys_b)
+    return distance(sa, sb, d.pos_a, d.rot_a, d.pos_b if pos_b is None else pos_b, d.rot_b, witness=True, **kw)
+
+
+def reference(d, pos_b=None):
+    """Reference signed distances and the two reference bodies of every pair."""
+    pos_b = d.pos_b if pos_b is None else pos_b
+    out, bodies = [], []
+    for k in range(len(d)):
+        A, B = Body(d.polys_a[k], d.pos_a[k], d.rot_a[k]), Body(d.polys_b[k], pos_b[k], d.rot_b[k])
+        sep, _ = sat_separation(A, B)
+        out.append(sep if sep <= 0 else gap_features(A, B))
+        bodies.append((A, B))
+    return np.array(out), bodies
+
+
+def check(label, d, pos_b=None, *, coordinate_rounding=False):
+    """Run ``distance`` and assert the whole contract against the reference; return (result, ref)."""
+    r = run(d, pos_b)
+    ref, bodies = reference(d, pos_b)
+    tol = r.tol
+    err = np.abs(r.distance - ref) / tol
+    assert err.max() <= 10, f"{label}: |distance - reference| up to {err.max():.3g} tol (pair {err.argmax()})"
+    status = np.where(r.distance > tol, SEPARATED, np.where(r.distance < -tol, PENETRATING, TOUCHING))
+    np.testing.assert_array_equal(r.status, status)
+    np.testing.assert_allclose(np.linalg.norm(r.normal, axis=1), 1.0, rtol=0, atol=1e-12)
+    scale = np.abs(r.point_a).max(axis=1) + np.abs(r.distance)
+    gap_vec = r.point_b - r.point_a - r.distance[:, None] * r.normal
+    assert (np.abs(gap_vec).max(axis=1) <= 4 * EPS * scale).all(), f"{label}: point_b - point_a != distance n"
+    # On the boundary: the largest violated half-space is ~0 (negative inside, positive outside).
+    res = np.array(
+        [[residual(A, r.point_a[k][None])[0], residual(B, r.point_b[k][None])[0]] for k, (A, B) in enumerate(bodies)]
+    )
+    allowed = tol + (64 * EPS * np.abs(r.point_a).max(axis=1) if coordinate_rounding else 0.0)
+    bad = np.abs(res).max(axis=1) > allowed
+    assert not bad.any(), f"{label}: witnesses off their bodies, pairs {np.flatnonzero(bad)[:5]}: {res[bad][:5]}"
+    hit = pb.collide(pb.PrismSet(d.polys_a), pb.PrismSet(d.polys_b), d.pos_a, d.rot_a,
+                     d.pos_b if pos_b is None else pos_b, d.rot_b).hit  # fmt: skip
+    clear = np.abs(ref) > 2 * tol
+    wrong = clear & ((ref < 0) != hit)
+    assert not wrong.any(), f"{label}: sign disagrees with collide on pairs {np.flatnonzero(wrong)[:5]}"
+    return r, ref
+
+
+# ---------------------------------------------------------------------------
+# the references themselves
+# ---------------------------------------------------------------------------
+
+
+def test_reference_gap_methods_agree():
+    """Feature brute force, QP (HiGHS) and the SAT lower bound bracket the same gap."""
+    rng = np.random.default_rng(101)
+    d = make_pairs(rng, 60, "free", "smallmed")
+    n_sep = 0
+    for k in range(len(d)):
+        A, B = Body(d.polys_a[k], d.pos_a[k], d.rot_a[k]), Body(d.polys_b[k], d.pos_b[k], d.rot_b[k])
+        sep, _ = sat_separation(A, B)
+        if sep <= 0:
+            continue
+        n_sep += 1
+        S = d.scale[k]
+        g = gap_features(A, B)
+        qp, x, y, lower = gap_qp(A, B)
+        assert sep <= g + 1e-12 * S  # SAT: a lower bound of the gap
+        assert lower <= g + 1e-12 * S  # the QP's certificate: a lower bound too
+        assert g <= qp + 1e-7 * S  # the QP's points are (to its feasibility) in the bodies
+        assert qp - lower <= 1e-6 * S  # ... and its certificate closes the bracket
+        assert max(residual(A, x[None])[0], residual(B, y[None])[0]) <= 1e-6 * S
+    assert n_sep >= 20
+
+
+def test_reference_sat_on_an_analytic_overlap():
+    """Identical prisms in the same pose: the shortest way out is sideways, by the polygon's minimum width."""
+    for n, R in ((4, 1.0), (6, 2.0), (5, 1.5), (7, 0.5)):
+        xy = np.column_stack([R * np.cos(2 * np.pi * np.arange(n) / n), R * np.sin(2 * np.pi * np.arange(n) / n)])
+        width = 2 * R * np.cos(np.pi / n) if n % 2 == 0 else R * (1 + np.cos(np.pi / n))
+        Q = Rotation.from_rotvec([0.3, -0.2, 0.9]).as_matrix()
+        sep, _ = sat_separation(Body(xy, [1.0, 2.0, 3.0], Q), Body(xy, [1.0, 2.0, 3.0], Q))
+        assert sep == pytest.approx(-width, rel=1e-12)
+        r = distance(pb.Prism(xy), pb.Prism(xy), [1.0, 2.0, 3.0], Q, [1.0, 2.0, 3.0], Q)
+        assert r.distance[0] == pytest.approx(-width, abs=10 * r.tol[0])
+
+
+# ---------------------------------------------------------------------------
+# random poses
+# ---------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("pose_set", ["facing", "free"])
+@pytest.mark.parametrize("family", ["small", "medium"])
+def test_random_poses_match_the_reference(pose_set, family):
+    rng = np.random.default_rng({"facing": 1, "free": 2}[pose_set] * 10 + len(family))
+    d = make_pairs(rng, 150, pose_set, family)
+    r, ref = check(f"{pose_set}/{family}", d)
+    assert 0.1 < np.mean(ref < 0) < 0.9  # both signs are exercised
+    assert (r.solver <= 1).all()  # every pair converged (GJK gap or EPA depth)
+
+
+@pytest.mark.slow
+def test_large_polygons_match_the_reference():
+    """A few hundred vertices on both sides, regular and irregular."""
+    rng = np.random.default_rng(3)
+    rows = []
+    for k in range(24):
+        A = random_polygon(rng, int(rng.integers(200, 400)), regular=bool(k % 2))
+        B = random_polygon(rng, int(rng.integers(200, 400)), regular=not k % 2)
+        Ra, Rb = random_rotations(rng, 2) if k % 3 else (R_DOWN, rot_z(rng.uniform(0, 6.3)))
+        pa = rng.uniform(-1, 1, 3)
+        cb = pa + Ra[:, :2] @ polygon_centre(A) + rng.uniform(-1, 1, 3) * 1.5 * (polygon_radius(A) + polygon_radius(B))
+        rows.append((A, B, pa, Ra, cb - Rb[:, :2] @ polygon_centre(B), Rb))
+    check("large", pairs_from_rows(rows))
+
+
+def test_3600_gons_are_consistent():
+    """The paper's 3600-vertex end faces: no reference at this size, but touching after the move,
+    agreement with collide, and the distance of the 360-gon's prisms to within their difference."""
+    rng = np.random.default_rng(4)
+    n = 200
+    a, b = pb.Prism.regular(3600, 2.0), pb.Prism.regular(3600, 2.5)
+    ra, rb = random_rotations(rng, n), random_rotations(rng, n)
+    pa, pb_ = rng.uniform(-1, 1, (n, 3)), rng.uniform(-1, 1, (n, 3)) * 5
+    r = distance(a, b, pa, ra, pb_, rb, witness=True)
+    assert (r.solver <= 1).all()
+    hit = pb.collide(a, b, pa, ra, pb_, rb).hit
+    clear = np.abs(r.distance) > 2 * r.tol
+    assert np.array_equal(hit[clear], r.distance[clear] < 0)
+    moved = distance(a, b, pa, ra, pb_ - r.distance[:, None] * r.normal, rb)
+    assert (np.abs(moved.distance) <= moved.tol).all()
+    # Inscribed 3600-gon vs circumscribed: the polygons differ by at most R (1 - cos(pi / 3600)).
+    a2, b2 = pb.Prism.regular(360, 2.0), pb.Prism.regular(360, 2.5)
+    r2 = distance(a2, b2, pa, ra, pb_, rb)
+    assert (np.abs(r2.distance - r.distance) <= 4.5 * (1 - np.cos(np.pi / 360)) + 10 * r.tol).all()
+
+
+# ---------------------------------------------------------------------------
+# special relative poses
+# ---------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("mode", ["generic", "vertex", "edge"])
+@pytest.mark.parametrize("depression", [0.0, 1e-3])
+def test_perpendicular_axes(mode, depression):
+    rng = np.random.default_rng(7 + len(mode) + int(depression > 0))
+    check(f"perpendicular/{mode}", perpendicular_pairs(rng, 80, mode, depression=depression))
+
+
+@pytest.mark.parametrize("relation", ["parallel", "antiparallel"])
+@pytest.mark.parametrize("height", ["coplanar", "random"])
+def test_exactly_parallel_and_antiparallel_axes(relation, height):
+    """Identical axes (rotations about z only) and exactly opposite ones, with the analytic gap."""
+    rng = np.random.default_rng(11 + len(relation) + len(height))
+    d, gap = vertical_pairs(rng, 120, relation, height)
+    r, ref = check(f"{relation}/{height}", d)
+    sep = ref > 2 * r.tol
+    np.testing.assert_allclose(r.distance[sep], gap[sep], rtol=0, atol=10 * r.tol.max())
+
+
+def test_identical_rotation_matrices():
+    """One rotation matrix for both bodies (the axes are exactly parallel), side by side and overlapping."""
+    rng = np.random.default_rng(13)
+    rows = []
+    for _ in range(120):
+        A = random_polygon(rng, sample_vertex_count(rng, "smallmed"))
+        B = random_polygon(rng, sample_vertex_count(rng, "smallmed"))
+        R = Rotation.random(random_state=rng).as_matrix()
+        pa = rng.uniform(-2, 2, 3)
+        ca = pa + R[:, :2] @ polygon_centre(A)
+        off = R @ np.array([*rng.uniform(-1.2, 1.2, 2) * (polygon_radius(A) + polygon_radius(B)), rng.uniform(-2, 2)])
+        rows.append((A, B, pa, R, ca + off - R[:, :2] @ polygon_centre(B), R))
+    r, ref = check("identical rotations", pairs_from_rows(rows))
+    assert 0.2 < np.mean(ref < 0) < 0.8
+
+
+def _tilted(rng, n, tilt, facing):
+    """b's axis parallel (or antiparallel) to a's, tilted by ``tilt`` about a random axis across it."""
+    rows = []
+    for _ in range(n):
+        A = random_polygon(rng, sample_vertex_count(rng, "smallmed"))
+        B = random_polygon(rng, sample_vertex_count(rng, "smallmed"))
+        Ra = Rotation.random(random_state=rng).as_matrix()
+        ax = rng.normal(size=3)
+        ax -= (ax @ Ra[:, 2]) * Ra[:, 2]
+        Rt = Rotation.from_rotvec(ax / np.linalg.norm(ax) * tilt).as_matrix()
+        Rb = Rt @ Ra @ (R_DOWN if facing else np.eye(3)) @ rot_z(rng.uniform(0, 2 * np.pi))
+        pa = rng.uniform(-1, 1, 3)
+        ra, rb = polygon_radius(A), polygon_radius(B)
+        cb = (
+            pa
+            + Ra[:, :2] @ polygon_centre(A)
+            + Ra @ np.array([*rng.uniform(-1.2, 1.2, 2), rng.uniform(-1, 1)]) * (ra + rb)
+        )
+        rows.append((A, B, pa, Ra, cb - Rb[:, :2] @ polygon_centre(B), Rb))
+    return pairs_from_rows(rows)
+
+
+@pytest.mark.parametrize("tilt", [1e-2, 1e-5, 1e-8, 1e-13, 1e-16])
+@pytest.mark.parametrize("facing", [False, True])
+def test_nearly_parallel_axes(tilt, facing):
+    """Axes that (nearly) point the same way meet or pass at about gap / tilt from the end faces: the
+    distance and normal stay exact, the witness points lie out there and carry the rounding of their
+    own coordinates."""
+    rng = np.random.default_rng(int(-np.log10(tilt)) + 40 * facing)
+    r, ref = check(f"tilt {tilt:g}, facing={facing}", _tilted(rng, 80, tilt, facing), coordinate_rounding=True)
+    assert 0.1 < np.mean(ref < 0) < 0.9
+
+
+# ---------------------------------------------------------------------------
+# near contact, and scale
+# ---------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("pose_set", ["facing", "free"])
+def test_near_contact(pose_set):
+    """Pairs bisected to touching (by collide), then moved in or out by 0.1 to 1e4 tol."""
+    rng = np.random.default_rng(17 + len(pose_set))
+    d = overlapping_pairs(rng, 150, pose_set)
+    sa, sb = pb.PrismSet(d.polys_a), pb.PrismSet(d.polys_b)
+    far = 3 * d.scale
+    u, ok = separating_directions(rng, sa, sb, d, far)
+    lo, hi = bisect_to_contact(sa, sb, d, u, far)
+    tol = distance(sa, sb, *d.args()).tol
+    step = rng.choice([-1.0, 1.0], len(d)) * 10 ** rng.uniform(-1, 4, len(d)) * tol
+    pos_b = d.pos_b + (0.5 * (lo + hi) + step)[:, None] * u
+    keep = np.flatnonzero(ok)
+    r, ref = check(f"near contact/{pose_set}", d.subset(keep), pos_b[keep])
+    assert (r.status == TOUCHING).sum() >= 5 and (r.status == SEPARATED).sum() >= 20
+    assert (r.status == PENETRATING).sum() >= 20
+
+
+@pytest.mark.parametrize("size, offset", [(1e-6, 1e6), (1e-3, 1e3), (1e3, 1e-3)])
+def test_tiny_and_huge_objects_far_from_the_origin(size, offset):
+    rng = np.random.default_rng(int(np.log10(size)) + 50)
+    d = make_pairs(rng, 80, "free", "small")
+    d.polys_a = [p * size for p in d.polys_a]
+    d.polys_b = [p * size for p in d.polys_b]
+    d.pos_a, d.pos_b = d.pos_a * size + offset, d.pos_b * size + offset
+    r, _ = check(f"size {size:g} at {offset:g}", d)
+    base = run(make_pairs(np.random.default_rng(int(np.log10(size)) + 50), 80, "free", "small"))
+    np.testing.assert_allclose(r.distance, size * base.distance, rtol=0, atol=10 * r.tol.max())
+
+
+# ---------------------------------------------------------------------------
+# properties (hypothesis)
+# ---------------------------------------------------------------------------
+
+
+def _random_pair(seed, facing):
+    rng = np.random.default_rng(seed)
+    return make_pairs(rng, 1, "facing" if facing else "free", "smallmed")
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 2**32 - 1), facing=st.booleans())
+def test_moving_b_by_minus_distance_normal_touches(seed, facing):
+    d = _random_pair(seed, facing)
+    r = run(d)
+    moved = run(d, d.pos_b - r.distance[:, None] * r.normal)
+    assert abs(moved.distance[0]) <= moved.tol[0]
+    assert moved.status[0] == TOUCHING
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    quat=st.tuples(*[st.floats(-1, 1, allow_nan=False)] * 4).filter(lambda q: np.linalg.norm(q) > 0.1),
+    shift=st.tuples(*[st.floats(-1e3, 1e3, allow_nan=False)] * 3),
+)
+def test_a_common_rigid_motion_changes_nothing(seed, quat, shift):
+    d = _random_pair(seed, seed % 2 == 0)
+    r = run(d)
+    Q = Rotation.from_quat(np.array(quat) / np.linalg.norm(quat)).as_matrix()
+    t = np.array(shift)
+    moved = distance(
+        pb.Prism(d.polys_a[0]), pb.Prism(d.polys_b[0]), Q @ d.pos_a[0] + t, Q @ d.rot_a[0], Q @ d.pos_b[0] + t,
+        Q @ d.rot_b[0], witness=True,
+    )  # fmt: skip
+    tol = max(r.tol[0], moved.tol[0])
+    assert abs(moved.distance[0] - r.distance[0]) <= 10 * tol
+    # The moved pair's normal, turned back, is a normal of the original pair (ties may pick another one).
+    back = run(d, d.pos_b - r.distance[:, None] * (Q.T @ moved.normal[0]))
+    assert abs(back.distance[0]) <= back.tol[0]
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 2**32 - 1), facing=st.booleans())
+def test_swapping_a_and_b(seed, facing):
+    d = _random_pair(seed, facing)
+    r = run(d)
+    s = distance(pb.PrismSet(d.polys_b), pb.PrismSet(d.polys_a), d.pos_b, d.rot_b, d.pos_a, d.rot_a, witness=True)
+    assert abs(s.distance[0] - r.distance[0]) <= 10 * r.tol[0]
+    back = run(d, d.pos_b + s.distance[:, None] * s.normal)  # moving a by -d n_ba is moving b by +d n_ba
+    assert abs(back.distance[0]) <= back.tol[0]
+
+
+# ---------------------------------------------------------------------------
+# the API: pose forms, broadcasting, threads, dtypes, results, errors
+# ---------------------------------------------------------------------------
+
+
+def test_pose_forms_and_broadcasting_match_matrices():
+    rng = np.random.default_rng(23)
+    a, b = pb.Prism.regular(7, 1.0), pb.Prism(random_polygon(rng, 9))
+    n = 50
+    Ra, Rb = random_rotations(rng, n), random_rotations(rng, n)
+    pa, pbb = rng.uniform(-1, 1, (n, 3)), rng.uniform(-2, 2, (n, 3))
+    base = distance(a, b, pa, Ra, pbb, Rb, witness=True)
+    T_a, T_b = np.tile(np.eye(4), (n, 1, 1)), np.tile(np.eye(4), (n, 1, 1))
+    T_a[:, :3, :3], T_a[:, :3, 3], T_b[:, :3, :3], T_b[:, :3, 3] = Ra, pa, Rb, pbb
+    q_a, q_b = Rotation.from_matrix(Ra), Rotation.from_matrix(Rb)
+    for other in (
+        distance(a, b, T_a, T_b, witness=True),
+        distance(a, b, pa, q_a, pbb, q_b, witness=True),
+        distance(a, b, pa, q_a.as_quat(), pbb, q_b.as_quat(), quat_order="xyzw", witness=True),
+        distance(a, b, pa, q_a.as_quat(scalar_first=True), pbb, q_b.as_quat(scalar_first=True), quat_order="wxyz",
+                 witness=True),
+    ):  # fmt: skip
+        np.testing.assert_allclose(other.distance, base.distance, rtol=0, atol=10 * base.tol.max())
+        np.testing.assert_allclose(other.normal, base.normal, rtol=0, atol=1e-6)
+    one = distance(a, b, pa[0], Ra[0], pbb, Rb)  # a single pose for a broadcasts
+    ref = distance(a, b, np.repeat(pa[:1], n, 0), np.repeat(Ra[:1], n, 0), pbb, Rb)
+    np.testing.assert_array_equal(one.distance, ref.distance)
+    assert len(distance(a, b, pa[0], Ra[0], pbb[0], Rb[0])) == 1
+
+
+def test_per_pair_shapes_match_single_prisms():
+    rng = np.random.default_rng(29)
+    d = make_pairs(rng, 30, "free", "smallmed")
+    r = run(d)
+    for k in range(len(d)):
+        one = distance(pb.Prism(d.polys_a[k]), pb.Prism(d.polys_b[k]), d.pos_a[k], d.rot_a[k], d.pos_b[k], d.rot_b[k])
+        assert one.distance[0] == r.distance[k]
+
+
+def test_serial_and_parallel_agree_exactly():
+    rng = np.random.default_rng(31)
+    d = make_pairs(rng, 300, "facing", "smallmed")
+    s, p = run(d, parallel=False), run(d, parallel=True)
+    for name in ("distance", "status", "tol", "solver", "normal", "point_a", "point_b"):
+        np.testing.assert_array_equal(getattr(s, name), getattr(p, name))
+
+
+def test_tolerance_is_collides():
+    rng = np.random.default_rng(37)
+    a, b = pb.Prism(random_polygon(rng, 6)), pb.Prism(random_polygon(rng, 11))
+    Ra, Rb = random_rotations(rng, 40), random_rotations(rng, 40)
+    pa, pbb = rng.uniform(-5, 5, (40, 3)), rng.uniform(-5, 5, (40, 3))
+    for rtol, atol in ((None, 0.0), (1e-6, 1e-3)):
+        r = distance(a, b, pa, Ra, pbb, Rb, rtol=rtol, atol=atol)
+        _, tol = pair_scale_tolerance(a, b, pa, Ra, pbb, Rb, rtol=rtol, atol=atol)
+        np.testing.assert_allclose(r.tol, tol, rtol=1e-12)
+
+
+def test_float32_agrees_within_its_tolerance():
+    rng = np.random.default_rng(41)
+    d = make_pairs(rng, 100, "free", "smallmed")
+    r64 = run(d)
+    r32 = run(d, dtype=np.float32)
+    assert (r32.tol > 1e-6 * d.scale).all()
+    assert (np.abs(r32.distance - r64.distance) <= 10 * r32.tol).all()
+
+
+def test_result_object():
+    a = pb.Prism.regular(4, 1.0)
+    r = distance(a, a, [0, 0, 0], R_DOWN, [[0, 0, 0.5], [0, 0, -0.25], [3.0, 0, 0]], np.eye(3))
+    np.testing.assert_allclose(r.distance, [0.5, -0.25, 1.0], rtol=0, atol=1e-12)
+    assert r.status.tolist() == [SEPARATED, PENETRATING, SEPARATED]
+    with pytest.raises(AttributeError, match="witness=True"):
+        r.normal
+    one = r[1]
+    assert isinstance(one, DistanceResult) and len(one) == 1 and one.distance[0] == r.distance[1]
+    assert len(r[r.distance > 0]) == 2
+    with pytest.raises(IndexError):
+        r[3]
+    w = distance(a, a, [0, 0, 0], R_DOWN, [[0, 0, 0.5]], np.eye(3), witness=True)
+    cols = w.columns()
+    assert set(cols) >= {"distance", "status", "tol", "solver", "normal_z", "point_a_x", "point_b_y"}
+    np.testing.assert_allclose(w.normal[0], [0, 0, 1], atol=1e-12)
+    np.testing.assert_allclose(w.point_b[0, 2] - w.point_a[0, 2], 0.5, atol=1e-12)
+    assert "1 pair" in repr(w) and "witnesses" in repr(w)
+
+
+def test_bad_input_is_refused():
+    a = pb.Prism.regular(5, 1.0)
+    with pytest.raises(ValueError, match="batch sizes do not match"):
+        distance(a, a, np.zeros((3, 3)), np.eye(3), np.zeros((4, 3)), np.eye(3))
+    with pytest.raises((TypeError, ValueError), match="witness"):
+        distance(a, a, np.zeros(3), np.eye(3), np.zeros(3), np.eye(3), witness="yes")
+    with pytest.raises(ValueError, match="pos_b"):
+        distance(a, a, np.zeros(3), np.eye(3), [np.nan, 0, 0], np.eye(3))
+    with pytest.raises(ValueError, match="rot_a"):
+        distance(a, a, np.zeros(3), 2 * np.eye(3), np.zeros(3), np.eye(3))
+    with pytest.raises(TypeError, match="pose for b"):
+        distance(a, a, np.zeros(3), np.eye(3))
+    with pytest.raises(TypeError):
+        distance(a, a, np.zeros(3), np.eye(3), np.zeros(3), np.eye(3), dtype=np.int32)
+    with pytest.raises(ValueError, match="rtol"):
+        distance(a, a, np.zeros(3), np.eye(3), np.zeros(3), np.eye(3), rtol=-1.0)
