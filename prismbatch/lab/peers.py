@@ -382,21 +382,33 @@ class _DistancePeer(_Peer):
         for k, (ra, pa, rb, pb) in enumerate(items):
             oa.setTransform(Transform(ra, pa))
             ob.setTransform(Transform(rb, pb))
-            dist[k], pa_out[k], pb_out[k] = self._query(lib, oa, ob)
+            dist[k], pa_out[k], pb_out[k] = self._query(lib, oa, ob, self.tolerance)
         return dist, pa_out, pb_out
 
 
 class CoalDistancePeer(_DistancePeer):
-    """coal's ``distance`` (GJK, EPA when penetrating) on ``coal.Convex`` stand-ins."""
+    """coal's ``distance`` (GJK, EPA when penetrating) on ``coal.Convex`` stand-ins.
+
+    ``tolerance`` (default: coal's own, what users get) sets its EPA tolerance: with its
+    default coal's depth was off by up to about 1e-4 of a size-4 scene here, so an accuracy
+    comparison of depths needs a tight one (1e-12).
+    """
 
     _import = staticmethod(_import_coal)
     _geometry = staticmethod(coal_prism)
     _transform_name = "Transform3s"
 
+    def __init__(self, xy_a, xy_b, length, tolerance=None):
+        super().__init__(xy_a, xy_b, length)
+        self.tolerance = tolerance
+
     @staticmethod
-    def _query(lib, oa, ob):
+    def _query(lib, oa, ob, tolerance):
         req, res = lib.DistanceRequest(), lib.DistanceResult()
         req.enable_signed_distance = True
+        if tolerance is not None:
+            req.epa_tolerance = tolerance  # the depth only: a tight GJK tolerance gave gaps of 0.0 here
+            req.epa_max_iterations = 10_000
         d = lib.distance(oa, ob, req, res)
         return d, res.getNearestPoint1(), res.getNearestPoint2()
 
@@ -408,8 +420,10 @@ class FCLDistancePeer(_DistancePeer):
     _geometry = staticmethod(fcl_prism)
     _transform_name = "Transform"
 
+    tolerance = None  # python-fcl's request has no tolerance to set
+
     @staticmethod
-    def _query(lib, oa, ob):
+    def _query(lib, oa, ob, tolerance):
         req = lib.DistanceRequest(enable_nearest_points=True, enable_signed_distance=True)
         res = lib.DistanceResult()
         d = lib.distance(oa, ob, req, res)
