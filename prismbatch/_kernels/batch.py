@@ -20,6 +20,36 @@ from .planar import extreme_vertex
 from .projection import CASE_ABOVE, T_P, T_R, T_TOL, pair_test, surely_above
 
 
+@jit(inline="always")
+def centres_world(acx, acy, bcx, bcy, Pa, Ra, Pb, Rb):
+    """a's end-face centre o in world coordinates and b's centre relative to it, d = c_b - c_a.
+
+    The end-face centres (acx, acy) and (bcx, bcy) are in each prism's local frame (the
+    user's origin need not lie inside the polygon). d is formed differences first: (Pb - Pa)
+    is exact for nearby positions, so small objects far from the origin keep every bit of
+    their separation (summing world coordinates first rounds it to eps |P|, which for 1e-6
+    objects at 1e6 reached tol and missed gaps just below it).
+    """
+    ox = Pa[0] + Ra[0, 0] * acx + Ra[0, 1] * acy
+    oy = Pa[1] + Ra[1, 0] * acx + Ra[1, 1] * acy
+    oz = Pa[2] + Ra[2, 0] * acx + Ra[2, 1] * acy
+    dx = (Pb[0] - Pa[0]) + ((Rb[0, 0] * bcx + Rb[0, 1] * bcy) - (Ra[0, 0] * acx + Ra[0, 1] * acy))
+    dy = (Pb[1] - Pa[1]) + ((Rb[1, 0] * bcx + Rb[1, 1] * bcy) - (Ra[1, 0] * acx + Ra[1, 1] * acy))
+    dz = (Pb[2] - Pa[2]) + ((Rb[2, 0] * bcx + Rb[2, 1] * bcy) - (Ra[2, 0] * acx + Ra[2, 1] * acy))
+    return ox, oy, oz, dx, dy, dz
+
+
+@jit(inline="always")
+def pair_tolerance(ra, rb, centre_distance, ox, oy, oz, dx, dy, dz, rtol, atol, eps):
+    """The pair's tolerance ``atol + rtol S + 4 eps (|c_a| + |c_b|)``, S = ra + rb + |c_b - c_a|.
+
+    Scale-aware: rounding grows with the sizes involved, and the world positions themselves
+    are only known to eps |c| (o = c_a and d = c_b - c_a from :func:`centres_world`).
+    """
+    far = math.sqrt(ox * ox + oy * oy + oz * oz) + math.sqrt((dx + ox) ** 2 + (dy + oy) ** 2 + (dz + oz) ** 2)
+    return atol + rtol * (ra + rb + centre_distance) + 4.0 * eps * far
+
+
 # error_model="numpy": with Python's ZeroDivisionError check on 1 / det the
 # facing-pose benchmark measured ~20% slower per pair; det ~ 1 here.
 # Kept as one long function: the per-pair hot path (not split into calls, which would add call and
@@ -58,23 +88,7 @@ def pair_world(
     Shapes ka of set a and kb of set b; Pa (3,), Ra (3, 3) etc. ``trace``:
     None, or TRACE_SIZE floats to fill (see _projection.TRACE_FIELDS).
     """
-    # End-face centres in world coordinates (the user's origin need not
-    # lie inside the polygon).
-    cax = acen[ka, 0]
-    cay = acen[ka, 1]
-    cbx = bcen[kb, 0]
-    cby = bcen[kb, 1]
-    ox = Pa[0] + Ra[0, 0] * cax + Ra[0, 1] * cay
-    oy = Pa[1] + Ra[1, 0] * cax + Ra[1, 1] * cay
-    oz = Pa[2] + Ra[2, 0] * cax + Ra[2, 1] * cay
-    # b's centre relative to a's, differences first: (Pb - Pa) is exact for
-    # nearby positions, so small objects far from the origin keep every bit
-    # of their separation (summing world coordinates first rounds it to
-    # eps |P|, which for 1e-6 objects at 1e6 reached tol and missed gaps
-    # just below it).
-    dx = (Pb[0] - Pa[0]) + ((Rb[0, 0] * cbx + Rb[0, 1] * cby) - (Ra[0, 0] * cax + Ra[0, 1] * cay))
-    dy = (Pb[1] - Pa[1]) + ((Rb[1, 0] * cbx + Rb[1, 1] * cby) - (Ra[1, 0] * cax + Ra[1, 1] * cay))
-    dz = (Pb[2] - Pa[2]) + ((Rb[2, 0] * cbx + Rb[2, 1] * cby) - (Ra[2, 0] * cax + Ra[2, 1] * cay))
+    ox, oy, oz, dx, dy, dz = centres_world(acen[ka, 0], acen[ka, 1], bcen[kb, 0], bcen[kb, 1], Pa, Ra, Pb, Rb)
     # b's pose in a's centred frame, p = Ra^-1 d and R = Ra^-1 Rb, with the
     # exact inverse (rows a1 x a2, a2 x a0, a0 x a1 over det): the body is
     # the affine image of the matrix as given, whose rounding from
@@ -122,15 +136,7 @@ def pair_world(
     r22 = s + (i20 * ex + i21 * ey + i22 * ez)
     ra = arad[ka]
     rb = brad[kb]
-    # Scale-aware tolerance: rounding grows with the sizes involved, and
-    # the world positions themselves are only known to eps |c|.
-    tol = (
-        atol
-        + rtol * (ra + rb + math.sqrt(px * px + py * py + pz * pz))
-        + 4.0
-        * eps
-        * (math.sqrt(ox * ox + oy * oy + oz * oz) + math.sqrt((dx + ox) ** 2 + (dy + oy) ** 2 + (dz + oz) ** 2))
-    )
+    tol = pair_tolerance(ra, rb, math.sqrt(px * px + py * py + pz * pz), ox, oy, oz, dx, dy, dz, rtol, atol, eps)
     sa = aoff[ka]
     na = aoff[ka + 1] - sa
     sb = boff[kb]

@@ -30,7 +30,7 @@ import math
 import numpy as np
 from numba import prange
 
-from .batch import unpack
+from .batch import centres_world, pair_tolerance, unpack
 from .jit import jit, twins
 from .planar import extreme_vertex
 
@@ -543,17 +543,10 @@ def pair_distance(P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, rtol, atol, eps, witnes
     workspace (8 x 3, 8 x 3 int, 8). The normal (3-tuple) points from a to b,
     point_b = point_a + distance * normal; both NaN unless ``witness``.
     """
-    ox = Pa[0] + Ra[0, 0] * ca[0] + Ra[0, 1] * ca[1]
-    oy = Pa[1] + Ra[1, 0] * ca[0] + Ra[1, 1] * ca[1]
-    oz = Pa[2] + Ra[2, 0] * ca[0] + Ra[2, 1] * ca[1]
-    # c_b - c_a, differences first (see batch.pair_world).
-    dx = (Pb[0] - Pa[0]) + ((Rb[0, 0] * cb[0] + Rb[0, 1] * cb[1]) - (Ra[0, 0] * ca[0] + Ra[0, 1] * ca[1]))
-    dy = (Pb[1] - Pa[1]) + ((Rb[1, 0] * cb[0] + Rb[1, 1] * cb[1]) - (Ra[1, 0] * ca[0] + Ra[1, 1] * ca[1]))
-    dz = (Pb[2] - Pa[2]) + ((Rb[2, 0] * cb[0] + Rb[2, 1] * cb[1]) - (Ra[2, 0] * ca[0] + Ra[2, 1] * ca[1]))
-    S = ra + rb + math.sqrt(dx * dx + dy * dy + dz * dz)
-    # The pair tolerance of collide (batch.pair_world).
-    far = math.sqrt(ox * ox + oy * oy + oz * oz) + math.sqrt((dx + ox) ** 2 + (dy + oy) ** 2 + (dz + oz) ** 2)
-    tol = atol + rtol * S + 4.0 * eps * far
+    ox, oy, oz, dx, dy, dz = centres_world(ca[0], ca[1], cb[0], cb[1], Pa, Ra, Pb, Rb)
+    centre_distance = math.sqrt(dx * dx + dy * dy + dz * dz)
+    S = ra + rb + centre_distance
+    tol = pair_tolerance(ra, rb, centre_distance, ox, oy, oz, dx, dy, dz, rtol, atol, eps)  # collide's
     L = BOX * S
     acc = max(ACC_FRACTION * tol, ACC_EPS * EPS64 * L)
     loose = max(LOOSE_FRACTION * tol, acc)
