@@ -175,9 +175,7 @@ class Collider:
 
     def collide(self, pos_a, rot_a=None, pos_b=None, rot_b=None, *, contact=False, quat_order=None, parallel=None):
         """Test the pose pairs; see :func:`collide` for the arguments."""
-        pos_a, rot_a, pos_b, rot_b = transforms_as_written(pos_a, rot_a, pos_b, rot_b)
-        if pos_b is None:
-            raise TypeError("collide needs a pose for b: pos_b (and rot_b, or a 4x4 transform as pos_b)")
+        pos_a, rot_a, pos_b, rot_b = _as_written("collide", pos_a, rot_a, pos_b, rot_b)
         check_flag(contact, "contact")
         if parallel is not None:
             check_flag(parallel, "parallel")
@@ -189,12 +187,7 @@ class Collider:
                 np.array([r.case], dtype=np.int8),
                 r.contact[None, :].astype(self.dtype) if contact else None,
             )
-        pa, ra = as_pose(pos_a, rot_a, quat_order=quat_order, name="a", dtype=self.dtype)
-        pb, rb = as_pose(pos_b, rot_b, quat_order=quat_order, name="b", dtype=self.dtype)
-        n = common_batch_size(pa, ra, pb, rb, n_shapes=self._n_shapes)
-        dt = self.dtype
-        pa, pb = _kernel_array(pa, (-1, 3), dt), _kernel_array(pb, (-1, 3), dt)
-        ra, rb = _kernel_array(ra, (-1, 3, 3), dt), _kernel_array(rb, (-1, 3, 3), dt)
+        n, pa, ra, pb, rb = self._batch_poses(pos_a, rot_a, pos_b, rot_b, quat_order)
         hit, case, cont = _batch.run(
             self._a,
             self._b,
@@ -214,21 +207,30 @@ class Collider:
         """Signed distance of the pose pairs; see :func:`prismbatch.distance` for the arguments."""
         from .distance import signed_distance  # distance builds on this module
 
+        pos_a, rot_a, pos_b, rot_b = _as_written("distance", pos_a, rot_a, pos_b, rot_b)
+        check_flag(witness, "witness")
+        check_flag(parallel, "parallel", allow_none=True)
+        poses = self._batch_poses(pos_a, rot_a, pos_b, rot_b, quat_order)
         return signed_distance(
             self._a,
             self._b,
-            self._n_shapes,
-            pos_a,
-            rot_a,
-            pos_b,
-            rot_b,
+            *poses,
             rtol=self.rtol,
             atol=self.atol,
             dtype=self.dtype,
             witness=witness,
-            quat_order=quat_order,
             parallel=parallel,
         )
+
+    def _batch_poses(self, pos_a, rot_a, pos_b, rot_b, quat_order):
+        """``(n, pos_a, rot_a, pos_b, rot_b)``: the poses checked, sized and converted once for the kernels."""
+        pa, ra = as_pose(pos_a, rot_a, quat_order=quat_order, name="a", dtype=self.dtype)
+        pb, rb = as_pose(pos_b, rot_b, quat_order=quat_order, name="b", dtype=self.dtype)
+        n = common_batch_size(pa, ra, pb, rb, n_shapes=self._n_shapes)
+        dt = self.dtype
+        pa, pb = _kernel_array(pa, (-1, 3), dt), _kernel_array(pb, (-1, 3), dt)
+        ra, rb = _kernel_array(ra, (-1, 3, 3), dt), _kernel_array(rb, (-1, 3, 3), dt)
+        return n, pa, ra, pb, rb
 
     def collide_pair(self, pos_a, rot_a=None, pos_b=None, rot_b=None, *, quat_order=None):
         """One pose pair at the lowest latency: one compiled call, checks included.
@@ -370,6 +372,14 @@ class Collider:
 
 #: Whether the one-pair kernel of a dtype has compiled its one signature and been closed to others.
 _pair_closed = {np.dtype(np.float64): False, np.dtype(np.float32): False}
+
+
+def _as_written(query, pos_a, rot_a, pos_b, rot_b):
+    """The poses with two positional 4x4 transforms read as written; TypeError naming ``query`` without b's pose."""
+    pos_a, rot_a, pos_b, rot_b = transforms_as_written(pos_a, rot_a, pos_b, rot_b)
+    if pos_b is None:
+        raise TypeError(f"{query} needs a pose for b: pos_b (and rot_b, or a 4x4 transform as pos_b)")
+    return pos_a, rot_a, pos_b, rot_b
 
 
 def _kernel_array(x, shape, dtype):

@@ -28,7 +28,6 @@ from ._kernels.distance import (
 )
 from ._kernels.jit import first_call
 from .collide import Collider
-from .poses import as_pose, check_flag, common_batch_size, transforms_as_written
 
 __all__ = ["distance", "signed_distance", "DistanceResult", "STATUS", "SOLVERS", "SEPARATED", "TOUCHING", "PENETRATING"]
 
@@ -196,39 +195,28 @@ def distance(
     return col.distance(pos_a, rot_a, pos_b, rot_b, witness=witness, quat_order=quat_order, parallel=parallel)
 
 
-def signed_distance(
-    a_arrays, b_arrays, n_shapes, pos_a, rot_a, pos_b, rot_b, *, rtol, atol, dtype, witness, quat_order, parallel
-):
-    """:func:`distance` for shapes already checked and packed (what a :class:`~prismbatch.Collider` holds).
+def signed_distance(a_arrays, b_arrays, n, pos_a, rot_a, pos_b, rot_b, *, rtol, atol, dtype, witness, parallel):
+    """:func:`distance` for shapes and poses already checked and packed (by a :class:`~prismbatch.Collider`).
 
     Parameters
     ----------
     a_arrays, b_arrays : PrismArrays
         ``PrismSet.kernel_arrays(dtype)`` of each shape.
-    n_shapes : int or None
-        Number of per-pair shapes (None when both are single prisms).
-    pos_a, rot_a, pos_b, rot_b, witness, quat_order, parallel
-        As :func:`distance`.
+    n : int
+        Number of pairs.
+    pos_a, rot_a, pos_b, rot_b : numpy.ndarray
+        C-contiguous, writeable (1 or n, 3) positions and (1 or n, 3, 3) rotations of ``dtype``.
     rtol, atol : float
         Checked tolerances.
     dtype : numpy.dtype
         float64 or float32.
+    witness, parallel
+        As :func:`distance` (checked).
 
     Returns
     -------
     DistanceResult
     """
-    pos_a, rot_a, pos_b, rot_b = transforms_as_written(pos_a, rot_a, pos_b, rot_b)
-    if pos_b is None:
-        raise TypeError("distance needs a pose for b: pos_b (and rot_b, or a 4x4 transform as pos_b)")
-    check_flag(witness, "witness")
-    check_flag(parallel, "parallel", allow_none=True)
-    pa, ra = as_pose(pos_a, rot_a, quat_order=quat_order, name="a", dtype=dtype)
-    pb, rb = as_pose(pos_b, rot_b, quat_order=quat_order, name="b", dtype=dtype)
-    n = common_batch_size(pa, ra, pb, rb, n_shapes=n_shapes)
-    # C-contiguous and writeable: Numba types read-only arrays apart (another compile).
-    pa, pb = (np.require(np.reshape(x, (-1, 3)), dtype, ["C", "W"]) for x in (pa, pb))
-    ra, rb = (np.require(np.reshape(x, (-1, 3, 3)), dtype, ["C", "W"]) for x in (ra, rb))
     dist = np.empty(n)
     status = np.empty(n, dtype=np.int8)
     tol = np.empty(n)
@@ -236,7 +224,7 @@ def signed_distance(
     k = n if witness else 0  # status-only calls write no witnesses
     normal, point_a, point_b = np.empty((k, 3)), np.empty((k, 3)), np.empty((k, 3))
     kern = distance_parallel if use_parallel(parallel, n) else distance_serial
-    args = (a_arrays.floats, a_arrays.ints, b_arrays.floats, b_arrays.ints, (pa, ra, pb, rb), float(rtol))
+    args = (a_arrays.floats, a_arrays.ints, b_arrays.floats, b_arrays.ints, (pos_a, rot_a, pos_b, rot_b), float(rtol))
     args += (float(atol), float(np.finfo(dtype).eps), bool(witness), (dist, status, tol, solver))
     first_call((kern, np.dtype(dtype)), kern, *args, (normal, point_a, point_b))
     if not witness:

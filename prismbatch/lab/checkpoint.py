@@ -70,7 +70,6 @@ class Checkpoint:
     def __init__(self, out_dir, command, settings, *, resume=False):
         self.dir = Path(out_dir) / "checkpoint" / command
         self.settings = jsonable(settings)
-        self.loaded = 0
         manifest = self.dir / "run.json"
         if resume and manifest.exists():
             with open(manifest, encoding="utf-8") as f:
@@ -94,9 +93,7 @@ class Checkpoint:
         if not p.exists():
             return None
         with open(p, "rb") as f:
-            out = pickle.load(f)
-        self.loaded += 1
-        return out
+            return pickle.load(f)
 
     def save(self, unit, result):
         """Save the result of a finished ``unit`` (atomically)."""
