@@ -196,6 +196,13 @@ def _experiment_parser(sub):
         "(default: the distance b moved in the last step)",
     )
     p.add_argument(
+        "--contact-from",
+        choices=("distance", "collide"),
+        default="distance",
+        help="where detach takes the contact: distance: the penetration's witness point on a and its normal; "
+        "collide: collide's contact point, inside both bodies for deep contacts, as the paper (default: distance)",
+    )
+    p.add_argument(
         "--out",
         default=None,
         metavar="DIR",

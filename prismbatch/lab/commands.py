@@ -45,6 +45,7 @@ def experiment_command(args):
         mass=args.mass,
         damping=args.damping,
         detach_tol=args.detach_tol,
+        contact_from=args.contact_from,
         fcl=not args.no_fcl,
     )
     for line in format_summary(res):

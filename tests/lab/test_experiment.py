@@ -15,6 +15,7 @@ import json
 import numpy as np
 import pytest
 
+from prismbatch import Prism, distance
 from prismbatch.cli import main
 from prismbatch.control import CONTACT_CLASSES
 from prismbatch.lab.experiment import FIG10_TIMES, format_summary, projected_contour, run_experiment, write_experiment
@@ -114,6 +115,38 @@ def test_force_plant_and_speed_limit_run():
     )
     steady = np.linalg.norm(np.diff(slow.dc, axis=0), axis=1)[~slow.hit[:-1]] / slow.params["dt_s"]
     assert steady.max() <= 0.5 + 1e-9
+
+
+def _distance_to_rim(xy_local, rot_a, point):
+    """Distance from a world point to the boundary of a's end face (a at the origin)."""
+    P = (xy_local @ rot_a[:, :2].T)[:, :2]
+    edge = np.inf
+    for i in range(len(P)):
+        p0, e = P[i], P[(i + 1) % len(P)] - P[i]
+        f = np.clip((point[:2] - p0) @ e / (e @ e), 0, 1)
+        edge = min(edge, np.linalg.norm(point[:2] - (p0 + f * e)))
+    return float(np.hypot(point[2], edge))
+
+
+def test_contact_from_distance_is_the_witness_point_on_a(triangle):
+    """The default takes the contact from the penetration's witness point on a (on a's rim here, as
+    collide's point, which contact_from="collide" uses, but elsewhere along the rim)."""
+    old = run_experiment("triangle", vertices=VERTS, timing=False, contact_from="collide")
+    g = triangle.geometry
+    assert triangle.params["contact_from"] == "distance" and old.params["contact_from"] == "collide"
+    hits = np.flatnonzero(triangle.hit)
+    assert len(hits) and np.array_equal(hits, np.flatnonzero(old.hit))
+    b = Prism.regular(VERTS, 0.5 * triangle.params["b_diameter_mm"])
+    a = Prism(g["xy_a"])
+    for k in hits:
+        d = distance(a, b, g["pos_a"], g["rot_a"], triangle.dc[k], g["rot_b"], witness=True)
+        np.testing.assert_allclose(triangle.contact[k], d.point_a[0], rtol=0, atol=1e-12)
+        np.testing.assert_allclose(triangle.direction[k], d.normal[0], rtol=0, atol=1e-12)
+        assert _distance_to_rim(g["xy_a"], g["rot_a"], triangle.contact[k]) < 1e-9
+        assert _distance_to_rim(g["xy_a"], g["rot_a"], old.contact[k]) < 1e-6
+        assert np.linalg.norm(triangle.contact[k] - old.contact[k]) > 1e-3  # mm: not the same point
+    with pytest.raises(ValueError, match="contact_from"):
+        run_experiment(contact_from="witness", vertices=36, timing=False)
 
 
 def test_bad_parameters():

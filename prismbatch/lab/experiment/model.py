@@ -12,6 +12,8 @@ import numpy as np
 #: Object a: number of end-face vertices and side length (mm).
 PRISMS = {"square": (4, 3.0), "triangle": (3, 2.8)}
 PLANTS = ("velocity", "force")
+#: Where detach takes a contact from (see :func:`run_experiment`).
+CONTACT_FROM = ("distance", "collide")
 
 #: The instants of the paper's Fig. 10 (projected contours), in s.
 FIG10_TIMES = (0.0, 1.0, 2.0, 3.0, 3.5, 4.0, 5.0, 5.9)

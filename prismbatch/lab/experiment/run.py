@@ -14,9 +14,10 @@ import numpy as np
 from ...checks import check_memory
 from ...collide import Collider
 from ...control import detach
+from ...distance import SEPARATED
 from ...sampling import rotation_with_axis
 from ...shapes import Prism
-from .model import PLANTS, PRISMS, UM, ExperimentResult, batch_poses
+from .model import CONTACT_FROM, PLANTS, PRISMS, UM, ExperimentResult, batch_poses
 from .summary import summarise
 from .timing import replay_timing
 
@@ -57,7 +58,10 @@ def _validate(
     goal_tol_um,
     b_diameter_mm,
     b_real_diameter_mm,
+    contact_from,
 ):
+    if contact_from not in CONTACT_FROM:
+        raise ValueError(f"contact_from must be one of {list(CONTACT_FROM)}, got {contact_from!r}")
     if prism not in PRISMS:
         raise ValueError(f"prism must be one of {sorted(PRISMS)}, got {prism!r}")
     if plant not in PLANTS:
@@ -100,7 +104,7 @@ def _scene(prism, vertices, a_phase_deg, b_diameter_mm, b_real_diameter_mm, d_b)
     return shape_a, shape_b, geometry
 
 
-def _warm_up(col, shape_a, g, x0, eps):
+def _warm_up(col, shape_a, g, x0, eps, contact_from):
     """Compile (or load from cache) everything the loop and the replay use; seconds per part."""
     pa1, ra1, rb1 = batch_poses(g)
     compile_s = {}
@@ -113,6 +117,10 @@ def _warm_up(col, shape_a, g, x0, eps):
     t0 = time.perf_counter()
     detach(shape_a, np.zeros((1, 3)), pa1, ra1, rb1, np.ones((1, 3)), eps=eps)
     compile_s["detach"] = time.perf_counter() - t0
+    if contact_from == "distance":
+        t0 = time.perf_counter()
+        col.distance(pa1, ra1, x0.reshape(1, 3), rb1, witness=True, parallel=False)
+        compile_s["distance"] = time.perf_counter() - t0
     return compile_s
 
 
@@ -129,6 +137,7 @@ class _Control:
     mass: float
     damping: float
     detach_tol: float | None
+    contact_from: str
 
 
 class _Trace:
@@ -159,17 +168,24 @@ def _pd_command(ctl, e, x, x_prev, k):
     return u
 
 
-def _detach_step(ctl, shape_a, batch, r, e, x, x_prev, tr, k):
+def _detach_step(ctl, col, shape_a, batch, r, e, x, x_prev, tr, k):
     """Record the hit at sample k and the detach input for it; returns the detach call's seconds."""
     pa1, ra1, rb1 = batch
     tr.hit[k] = True
     tol = ctl.detach_tol if ctl.detach_tol is not None else max(float(np.linalg.norm(x - x_prev)), 1e-6)
     tr.tol_used[k] = tol
     t0 = time.perf_counter()
-    d = detach(shape_a, r.contact[None, :], pa1, ra1, rb1, e.reshape(1, 3), eps=ctl.eps, tol=tol)
+    contact, point = r.contact[None, :], r.contact
+    if ctl.contact_from == "distance":
+        dist = col.distance(pa1, ra1, x.reshape(1, 3), rb1, witness=True, parallel=False)
+        # collide's hit and distance's status agree outside the touching band; inside it a
+        # pair may be a hit by one and just apart by the other: then collide's point is used
+        if dist.status[0] != SEPARATED:
+            contact, point = dist, dist.point_a[0]
+    d = detach(shape_a, contact, pa1, ra1, rb1, e.reshape(1, 3), eps=ctl.eps, tol=tol)
     elapsed = time.perf_counter() - t0
     tr.cls[k] = d.contact_class[0]
-    tr.contact[k] = r.contact
+    tr.contact[k] = point
     tr.direction[k] = d.direction[0]
     tr.u_d[k] = d.force[0]
     return elapsed
@@ -205,7 +221,7 @@ def _simulate(col, shape_a, g, x0, xd, N, ctl):
         e = x - xd
         tr.u_pd[k] = _pd_command(ctl, e, x, x_prev, k)
         if r.hit:
-            detach_s += _detach_step(ctl, shape_a, batch, r, e, x, x_prev, tr, k)
+            detach_s += _detach_step(ctl, col, shape_a, batch, r, e, x, x_prev, tr, k)
         if k == N - 1:
             break
         U = tr.u_pd[k] + tr.u_d[k]
@@ -228,6 +244,7 @@ def run_experiment(
     mass=0.1,
     damping=1.0,
     detach_tol=None,
+    contact_from="distance",
     goal_tol_um=50.0,
     b_diameter_mm=1.5,
     b_real_diameter_mm=0.985,
@@ -260,6 +277,13 @@ def run_experiment(
     detach_tol : float or None
         Feature tolerance (mm) for the contact classification; None: the
         distance moved in the last step.
+    contact_from : {"distance", "collide"}
+        Where detach takes the contact from: ``"distance"`` (default) the
+        penetration's witness point on a and its normal
+        (:func:`prismbatch.distance`), so the class says where the bodies
+        really touch; ``"collide"`` the contact point of
+        :func:`prismbatch.collide`, a point within tol of both bodies that
+        lies inside both for deep contacts (class 6 "inside"), as the paper.
     goal_tol_um : float
         The goal counts as reached while |x - x_d| <= this (µm). The default
         50 µm is about 1 % of the 4.8 mm move; note kp = 0.3 /s leaves at best
@@ -307,6 +331,7 @@ def run_experiment(
         goal_tol_um,
         b_diameter_mm,
         b_real_diameter_mm,
+        contact_from,
     )
     vertices = int(vertices)
     N = _check_samples(duration, dt, timing and fcl)
@@ -318,8 +343,8 @@ def run_experiment(
     t = np.arange(N) * dt
 
     col = Collider(shape_a, shape_b)
-    compile_s = _warm_up(col, shape_a, geometry, x0, eps)
-    ctl = _Control(plant, dt, kp, kd, eps, max_speed, mass, damping, detach_tol)
+    compile_s = _warm_up(col, shape_a, geometry, x0, eps, contact_from)
+    ctl = _Control(plant, dt, kp, kd, eps, max_speed, mass, damping, detach_tol, contact_from)
     tr, detach_s = _simulate(col, shape_a, geometry, x0, xd, N, ctl)
 
     params = dict(
@@ -341,6 +366,7 @@ def run_experiment(
         mass_kg=mass if plant == "force" else None,
         damping_mN_s_per_mm=damping if plant == "force" else None,
         detach_tol_mm=detach_tol if detach_tol is not None else "distance moved in the last step (>= 1 nm)",
+        contact_from=contact_from,
         goal_tol_um=goal_tol_um,
         x0_um=list(map(float, x0_um)),
         xd_um=list(map(float, xd_um)),
