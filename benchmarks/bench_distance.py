@@ -14,8 +14,12 @@ without witness points. The distance error against coal is reported in units
 of the pair's tolerance, per bucket, against coal's depth with an EPA tolerance of
 1e-12 (with its default, timed here as users call it, coal's depth was off by up to
 about 1e-4 of the scene) and its gap with its defaults (a tight GJK tolerance made it
-report gaps of 0.0). ``collide(margin=m)`` is timed against a
-plain ``collide`` on the same pairs when the engine has it.
+report gaps of 0.0). ``collide(..., margin=m)`` is timed against a plain
+``collide`` and against ``distance`` on the same pairs, for m = 1e-8 S (ten
+tolerances) and 1e-3 S (the ratios from the thread CPU time of the interleaved
+calls, which a busy machine disturbs less than wall time), with its answers checked
+against ``distance <= m`` outside the touching band (the count of pairs that disagree
+is reported; it should be 0).
 
 Medians over repeats, all in one run; a Markdown table on stdout and, with
 ``--out``, the table and a JSON of every figure and the machine.
@@ -26,7 +30,6 @@ Medians over repeats, all in one run; a Markdown table on stdout and, with
 from __future__ import annotations
 
 import argparse
-import inspect
 from pathlib import Path
 
 import numba
@@ -36,29 +39,15 @@ import prismbatch as pb
 from prismbatch.lab.peers import CoalDistancePeer, FCLDistancePeer, standin_length
 from prismbatch.lab.report import fmt, run_metadata, write_json, write_text
 from prismbatch.lab.timing import stats, threads, timed_loops
+from prismbatch.lab.validate.distance import DISTANCE_BUCKETS, place
 from prismbatch.sampling import facing_poses, free_poses
 
 RADIUS_A, RADIUS_B = 2.0, 2.5
-#: Bucket name -> signed distance as a fraction of the size S = R_a + R_b (None: touching, 0.1 tol).
-BUCKETS = {
-    "penetrating 1": -1.0,
-    "penetrating 1e-2": -1e-2,
-    "touching": None,
-    "gap 1e-6": 1e-6,
-    "gap 1e-4": 1e-4,
-    "gap 1e-2": 1e-2,
-    "gap 1": 1.0,
-}
-
-
-def place(a, b, poses, target, rng):
-    """Poses of b moved along the witness normal to signed distance ``target`` (x S; None: 0.1 tol)."""
-    pa, ra, pb_, rb = poses
-    r = pb.distance(a, b, pa, ra, pb_, rb, witness=True)
-    S = RADIUS_A + RADIUS_B
-    want = 0.1 * r.tol * rng.uniform(-1, 1, len(r.tol)) if target is None else np.full(len(r.tol), target * S)
-    moved = pb_ + (want - r.distance)[:, None] * r.normal
-    return pa, ra, np.ascontiguousarray(moved), rb
+#: The buckets timed here (a subset of the validation's, prismbatch.lab.validate.distance).
+BUCKETS = {k: DISTANCE_BUCKETS[k] for k in ("penetrating 1", "penetrating 1e-2", "touching")}
+BUCKETS.update({k: DISTANCE_BUCKETS[k] for k in ("gap 1e-6", "gap 1e-4", "gap 1e-2", "gap 1")})
+#: Margins of the ``collide(..., margin=m)`` timing, as fractions of the size S.
+MARGINS = (1e-8, 1e-3)
 
 
 def _per_pair_us(fn, n, repeats):
@@ -73,23 +62,31 @@ def bucket_rows(n_vertices, n_pairs, repeats, rng, peers):
         "facing": tuple(np.ascontiguousarray(x) for x in facing_poses(n_pairs, rng, radius=RADIUS_B)),
         "free": tuple(np.ascontiguousarray(x) for x in free_poses(n_pairs, rng, radius=RADIUS_B)),
     }
-    has_margin = "margin" in inspect.signature(pb.collide).parameters
     rows = []
     for family, poses in base.items():
         for bucket, target in BUCKETS.items():
-            P = place(a, b, poses, target, rng)
+            P = place(a, b, poses, target, rng, RADIUS_A + RADIUS_B)
             n = len(P[0])
             L = 2.0 * max(standin_length(a.xy, b.xy, *(x[k] for x in P)) for k in range(n))
             row = {"vertices": n_vertices, "family": family, "bucket": bucket, "pairs": n, "standin_length": L}
             ref = pb.distance(a, b, *P)
-            row["pb_us"] = _per_pair_us(lambda P=P: pb.distance(a, b, *P, parallel=False), n, repeats)
-            row["pb_witness_us"] = _per_pair_us(
-                lambda P=P: pb.distance(a, b, *P, witness=True, parallel=False), n, repeats
-            )
-            row["collide_us"] = _per_pair_us(lambda P=P: col.collide(*P, parallel=False), n, repeats)
-            if has_margin:
-                m = 1e-3 * (RADIUS_A + RADIUS_B)
-                row["margin_us"] = _per_pair_us(lambda P=P: pb.collide(a, b, *P, margin=m, parallel=False), n, repeats)
+            S = RADIUS_A + RADIUS_B
+            calls = {  # interleaved in one loop: their ratios share the machine's state
+                "pb": lambda P=P: pb.distance(a, b, *P, parallel=False),
+                "pb_witness": lambda P=P: pb.distance(a, b, *P, witness=True, parallel=False),
+                "collide": lambda P=P: col.collide(*P, parallel=False),
+            }
+            for frac in MARGINS:
+                calls[f"margin_{frac:g}"] = lambda P=P, m=frac * S: col.collide(*P, margin=m, parallel=False)
+            cpu = {}  # thread CPU time too: blind to the time other processes take the core
+            for k, t in timed_loops(calls, repeats, cpu=cpu).items():
+                row[f"{k}_us"] = 1e6 * stats(t)["median"] / n
+                row[f"{k}_cpu_us"] = 1e6 * stats(cpu[k])["median"] / n
+            row["margin_disagree"] = 0
+            for frac in MARGINS:
+                hit = col.collide(*P, margin=frac * S).hit
+                wrong = (np.abs(ref.distance - frac * S) > ref.tol) & (hit != (ref.distance <= frac * S))
+                row["margin_disagree"] += int(np.count_nonzero(wrong))
             for name, cls in peers.items():
                 if name == "fcl" and (target is None or abs(target) < 1e-2):
                     continue  # python-fcl's signed distance aborts the process near touching (see --fcl)
@@ -121,13 +118,20 @@ def _peers(fcl):
 
 def markdown(rows, peers):
     head = ["n", "poses", "bucket", "pairs", "prismbatch µs", "+ witness µs", "collide µs"]
-    head += ["margin µs"] if "margin_us" in rows[0] else []
+    for frac in MARGINS:
+        head += [f"margin {frac:g} S µs", "/ collide", "distance /"]
+    head += ["margin wrong"]
     for p in peers:
         head += [f"{p} µs", f"{p} / prismbatch", f"max |pb - {p}| / tol"]
     L = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for r in rows:
         cells = [r["vertices"], r["family"], r["bucket"], r["pairs"], fmt(r["pb_us"]), fmt(r["pb_witness_us"])]
-        cells += [fmt(r["collide_us"])] + ([fmt(r["margin_us"])] if "margin_us" in r else [])
+        cells += [fmt(r["collide_us"])]
+        for frac in MARGINS:
+            t = r[f"margin_{frac:g}_us"]
+            cpu = r[f"margin_{frac:g}_cpu_us"]
+            cells += [fmt(t), fmt(cpu / r["collide_cpu_us"]), fmt(r["pb_cpu_us"] / cpu)]
+        cells += [r["margin_disagree"]]
         for p in peers:
             if f"{p}_us" not in r:
                 cells += ["-", "-", "-"]

@@ -12,9 +12,24 @@ from importlib.metadata import PackageNotFoundError, version
 
 from .collide import CASES, Collider, CollisionResult, collide
 from .distance import DistanceResult, distance
+from .motion import TimeOfImpactResult, time_of_impact
+from .probability import ProbabilityResult, collision_probability
 from .shapes import Prism, PrismSet
 
-__all__ = ["Prism", "PrismSet", "collide", "distance", "Collider", "CollisionResult", "DistanceResult", "CASES"]
+__all__ = [
+    "Prism",
+    "PrismSet",
+    "collide",
+    "distance",
+    "time_of_impact",
+    "collision_probability",
+    "Collider",
+    "CollisionResult",
+    "DistanceResult",
+    "TimeOfImpactResult",
+    "ProbabilityResult",
+    "CASES",
+]
 
 try:  # the one place the version lives is pyproject.toml
     __version__ = version("prismbatch")

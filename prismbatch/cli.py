@@ -125,6 +125,7 @@ def build_parser():
     _workprec_parser(sub)
     _reproduce_parser(sub)
     _replay_parser(sub)
+    _predict_parser(sub)
     return p
 
 
@@ -223,7 +224,7 @@ def _validate_parser(sub):
         "and report per case: confusion matrices, disagreements inside and outside the "
         "touching band, contact validity, NaN/inf and timings. Every disagreement goes to a "
         "replay file ('prismbatch replay FILE'). Exit status 1 if any disagreement lies "
-        "outside the band, a contact is invalid or an output is non-finite.",
+        "outside the band, a contact is invalid, an output is non-finite or a signed distance is off.",
     )
     p.add_argument("--pairs", type=int, default=100_000, metavar="N", help="pairs per distribution (default: 100,000)")
     p.add_argument(
@@ -280,6 +281,22 @@ def _validate_parser(sub):
         default=1000,
         metavar="N",
         help="keep at most N 'inside band' records in the replay file (all are counted; default: 1000)",
+    )
+    p.add_argument(
+        "--distance-pairs",
+        type=int,
+        default=None,
+        metavar="N",
+        help="pairs of the signed-distance section, against the exact reference and coal, per distance "
+        "bucket (0: off; default: the smaller of 1,000 and --pairs)",
+    )
+    p.add_argument(
+        "--distance-vertices",
+        type=_int_list,
+        default=(3, 36),
+        metavar="N,N,...",
+        help="vertex counts of the distance section, cycled per block (default: 3,36; the reference costs "
+        "about a second a pair of two 360-gons)",
     )
     g = p.add_mutually_exclusive_group()
     g.add_argument("--stiff", action="store_true", help="also run the stiff and extreme suite (a few minutes)")
@@ -434,6 +451,35 @@ def _replay_parser(sub):
         help="only record I (0-based; repeat for several)",
     )
     p.set_defaults(func=_lab_command("replay"))
+
+
+def _predict_parser(sub):
+    p = sub.add_parser(
+        "predict",
+        help="time of impact and probability of collision of queries from a file (or a random demo set)",
+        description="Collision prediction: for each query, the first time within the horizon at which b, moving "
+        "with its velocity and angular velocity, touches a (prismbatch.motion.time_of_impact), and the "
+        "probability that the two collide under Gaussian pose noise with its confidence interval "
+        "(prismbatch.probability.collision_probability). Queries come from a .npz file with arrays xy_a, xy_b, "
+        "pos_a, rot_a, pos_b, rot_b and velocity [angular_velocity, horizon] and/or cov_b [cov_a] (see "
+        "prismbatch.lab.queries.KEYS), or --demo N random ones. Writes predict.csv (a row per query) and "
+        "predict.json (settings, counts, timings) with --out.",
+    )
+    src = p.add_mutually_exclusive_group(required=True)
+    src.add_argument("queries", nargs="?", metavar="FILE.npz", help="the query file")
+    src.add_argument("--demo", type=int, metavar="N", help="N random queries from --seed (b moving towards a)")
+    p.add_argument("--horizon", type=float, default=1.0, help="look-ahead of queries without their own (default: 1)")
+    p.add_argument("--rel-error", type=float, default=0.1, help="probability: target relative error (default 0.1)")
+    p.add_argument("--confidence", type=float, default=0.95, help="probability: interval level (default 0.95)")
+    p.add_argument("--max-samples", type=int, default=1_000_000, help="probability: budget per query (default 1e6)")
+    p.add_argument(
+        "--quat-order", choices=("xyzw", "wxyz"), default=None, help="order of quaternion rotations in the file"
+    )
+    p.add_argument("--chunk-size", type=int, default=1024, help="queries per task (default: 1024)")
+    p.add_argument("--workers", type=int, default=None, help="run on a local Dask cluster of this many processes")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS", help="run on an existing Dask scheduler")
+    _add_output_options(p, figures=False, what="predict.csv and predict.json")
+    p.set_defaults(func=_lab_command("predict"))
 
 
 def main(argv=None):

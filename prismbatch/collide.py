@@ -71,10 +71,12 @@ class CollisionResult:
     Attributes
     ----------
     hit : numpy.ndarray of bool, shape (N,)
-        True where the prisms intersect or touch within the pair's tolerance.
+        True where the prisms intersect or touch within the pair's tolerance
+        (with ``collide(..., margin=m)``: where they come within m of each other).
     case : numpy.ndarray of int8, shape (N,)
         Case number of the relative pose (1-9 as in the paper, 10-11 added;
-        see :data:`prismbatch.CASES`).
+        see :data:`prismbatch.CASES`); 0 (not classified) for a query with
+        ``margin > 0``.
     """
 
     hit: np.ndarray
@@ -173,12 +175,27 @@ class Collider:
                     )
                 self._n_shapes = len(s)
 
-    def collide(self, pos_a, rot_a=None, pos_b=None, rot_b=None, *, contact=False, quat_order=None, parallel=None):
+    def collide(
+        self, pos_a, rot_a=None, pos_b=None, rot_b=None, *, contact=False, margin=0.0, quat_order=None, parallel=None
+    ):
         """Test the pose pairs; see :func:`collide` for the arguments."""
         pos_a, rot_a, pos_b, rot_b = _as_written("collide", pos_a, rot_a, pos_b, rot_b)
         check_flag(contact, "contact")
         if parallel is not None:
             check_flag(parallel, "parallel")
+        if not (margin.__class__ is float and margin == 0.0):  # the plain query skips the check's cost
+            margin = real_scalar(margin, "margin", 0.0, self._max_magnitude)
+            if margin > 0.0:  # early-stopping GJK (no case, no contact): _kernels/margin.py
+                from ._kernels.margin import run as run_margin
+
+                if contact:
+                    raise ValueError(
+                        "contact=True needs margin=0: a margin hit need not touch (for the nearest points "
+                        "use distance(..., witness=True))"
+                    )
+                n, pa, ra, pb, rb = self._batch_poses(pos_a, rot_a, pos_b, rot_b, quat_order)
+                hit = run_margin(self._a, self._b, pa, ra, pb, rb, n, margin, self.rtol, self.atol, parallel)
+                return CollisionResult(hit, np.zeros(n, dtype=np.int8))
         if self._is_single_pair(pos_a, rot_a, pos_b, rot_b, quat_order):
             # One plain pair: the compiled one-pair path (same kernel, far less Python).
             r = self.collide_pair(pos_a, rot_a, pos_b, rot_b)
@@ -221,6 +238,57 @@ class Collider:
             witness=witness,
             parallel=parallel,
         )
+
+    def time_of_impact(
+        self,
+        pos_a,
+        rot_a=None,
+        pos_b=None,
+        rot_b=None,
+        velocity=None,
+        angular_velocity=None,
+        *,
+        horizon,
+        pose=False,
+        contact=False,
+        max_iter=None,
+        quat_order=None,
+        parallel=None,
+    ):
+        """First contact of b moving against a; see :func:`prismbatch.motion.time_of_impact` for the arguments."""
+        from .motion import impact_times  # motion builds on this module
+
+        pos_a, rot_a, pos_b, rot_b = _as_written("time_of_impact", pos_a, rot_a, pos_b, rot_b)
+        check_flag(pose, "pose")
+        check_flag(contact, "contact")
+        check_flag(parallel, "parallel", allow_none=True)
+        poses = self._batch_poses(pos_a, rot_a, pos_b, rot_b, quat_order)
+        return impact_times(
+            self._a,
+            self._b,
+            *poses,
+            velocity,
+            angular_velocity,
+            horizon,
+            rtol=self.rtol,
+            atol=self.atol,
+            dtype=self.dtype,
+            max_iter=max_iter,
+            pose=pose,
+            contact=contact,
+            parallel=parallel,
+        )
+
+    def collision_probability(self, pos_a, rot_a, pos_b, rot_b, cov_b, *, cov_a=None, rel_error=0.1,
+                              confidence=0.95, max_samples=None, seed=None, method="auto", query_index=None,
+                              quat_order=None, parallel=None):  # fmt: skip
+        """Probability of collision under Gaussian pose noise; see
+        :func:`prismbatch.probability.collision_probability` for the arguments."""
+        from .probability import estimate  # probability builds on this module
+
+        return estimate(self, pos_a, rot_a, pos_b, rot_b, cov_b, cov_a=cov_a, rel_error=rel_error,
+                        confidence=confidence, max_samples=max_samples, seed=seed, method=method,
+                        query_index=query_index, quat_order=quat_order, parallel=parallel)  # fmt: skip
 
     def _batch_poses(self, pos_a, rot_a, pos_b, rot_b, quat_order):
         """``(n, pos_a, rot_a, pos_b, rot_b)``: the poses checked, sized and converted once for the kernels."""
@@ -417,6 +485,7 @@ def collide(
     rot_b=None,
     *,
     contact=False,
+    margin=0.0,
     quat_order=None,
     rtol=None,
     atol=0.0,
@@ -439,6 +508,18 @@ def collide(
         (4,) / (N, 4) together with ``quat_order``.
     contact : bool, optional
         Also compute contact points (a status-only call skips that work).
+        Only with ``margin=0``.
+    margin : float, optional
+        Security margin (coal's ``security_margin``), a finite real >= 0.
+        With ``margin > 0`` a pair is a hit iff the bodies come within
+        ``margin`` of each other (signed distance <= margin; pairs within the
+        pair's tolerance of that may go either way), decided by a GJK that
+        stops as soon as its bounds settle the question (a few support
+        searches a pair, far less than :func:`~prismbatch.distance.distance`).
+        Such a query classifies no relative pose (``case`` is 0) and computes
+        no contact (``contact=True`` raises ValueError: use
+        ``distance(..., witness=True)`` for the nearest points). ``margin=0``
+        (default) is the plain test.
     quat_order : {"wxyz", "xyzw"}, optional
         Component order of quaternion rotations (required for quaternions).
     rtol, atol : float, optional
@@ -459,8 +540,9 @@ def collide(
     Returns
     -------
     CollisionResult
-        ``hit`` (N,) bool, ``case`` (N,) int8 and, with ``contact=True``,
-        ``contact`` (N, 3) world points (NaN rows where there is no hit).
+        ``hit`` (N,) bool, ``case`` (N,) int8 (0 with ``margin > 0``) and,
+        with ``contact=True``, ``contact`` (N, 3) world points (NaN rows where
+        there is no hit).
 
     Raises
     ------
@@ -476,9 +558,13 @@ def collide(
     >>> r = pb.collide(a, b, [0, 0, 0], down, [[0, 0, 1.0], [0, 0, 0.0]], np.eye(3))
     >>> r.hit.tolist(), r.case.tolist()
     ([False, True], [1, 4])
+    >>> pb.collide(a, b, [0, 0, 0], down, [[0, 0, 1.0], [0, 0, 0.5]], np.eye(3), margin=0.75).hit.tolist()
+    [False, True]
     """
     col = _collider(shape_a, shape_b, rtol, atol, dtype)
-    return col.collide(pos_a, rot_a, pos_b, rot_b, contact=contact, quat_order=quat_order, parallel=parallel)
+    return col.collide(
+        pos_a, rot_a, pos_b, rot_b, contact=contact, margin=margin, quat_order=quat_order, parallel=parallel
+    )
 
 
 _recent = {}  # key -> (a, b, Collider); the shapes are kept alive so their ids stay theirs

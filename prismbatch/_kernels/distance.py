@@ -52,8 +52,9 @@ EPA_ROOM = (128, 1024, 8192)
 SEEN_SLACK = 1e-2
 #: Solver codes of a pair (the ``solver`` output): the gap by GJK; the depth by EPA; EPA stopped early
 #: (out of room at its largest, or a rounding-level step that would break its polytope: the depth
-#: returned is then an upper bound, the last face offset a lower one); no volume around the origin (touching).
-GJK_GAP, EPA_DEPTH, EPA_STOPPED, FLAT = 0, 1, 2, 3
+#: returned is then an upper bound, the last face offset a lower one); no volume around the origin (touching);
+#: GJK stalled on rounding with a gap proven (the gap returned is an upper bound, attained by the witnesses).
+GJK_GAP, EPA_DEPTH, EPA_STOPPED, FLAT, GJK_STALLED = 0, 1, 2, 3, 4
 
 
 @jit(inline="always")
@@ -231,8 +232,8 @@ def _compact(W, I, lam, m):
     k = 0
     for j in range(m):
         if lam[j] > 0.0:
-            W[k] = W[j]
-            I[k] = I[j]
+            for c in range(3):  # element by element: a row copy may allocate (no NRT in margin's loop)
+                W[k, c], I[k, c] = W[j, c], I[j, c]
             lam[k] = lam[j]
             k += 1
     return k
@@ -293,7 +294,8 @@ def closest(W, I, lam, m):
 def gjk(P, ix, fr, cone, ox, oy, oz, acc, loose, W, I, lam):
     """Closest point of D_L to o: GJK on the support function.
 
-    Returns (m, vx, vy, vz, inside): v = closest point - o, the simplex in
+    Returns (m, vx, vy, vz, inside, lower): v = closest point - o, ``lower`` the best lower
+    bound on the distance (a support plane), the simplex in
     ``W[:m]`` (points minus o), ``I[:m]`` (pre-images ia, ib, kc) and
     ``lam[:m]`` (weights). ``inside``: o lies in D_L or within ``acc`` of it, or
     GJK stopped (rounding, or its iteration cap) without showing a gap to within
@@ -316,15 +318,15 @@ def gjk(P, ix, fr, cone, ox, oy, oz, acc, loose, W, I, lam):
     for _ in range(GJK_MAX_ITER):
         vn = math.sqrt(vx * vx + vy * vy + vz * vz)
         if vn <= acc:
-            return m, vx, vy, vz, True
+            return m, vx, vy, vz, True, lower
         x, y, z, ia, ib, kc = support(P, ix, fr, cone, -vx, -vy, -vz)
         wx, wy, wz = x - ox, y - oy, z - oz
         lower = max(lower, (vx * wx + vy * wy + vz * wz) / vn)
         if vn - lower <= acc:
-            return m, vx, vy, vz, False
+            return m, vx, vy, vz, False, lower
         for j in range(m):
             if I[j, 0] == ia and I[j, 1] == ib and I[j, 2] == kc:  # no progress: converged to rounding
-                return m, vx, vy, vz, lower <= acc or vn - lower > loose
+                return m, vx, vy, vz, lower <= acc or vn - lower > loose, lower
         W[4 : 4 + m] = W[:m]  # kept: on slivers rounding can misjudge the faces and lose much ground
         I[4 : 4 + m] = I[:m]
         lam[4 : 4 + m] = lam[:m]
@@ -338,12 +340,12 @@ def gjk(P, ix, fr, cone, ox, oy, oz, acc, loose, W, I, lam):
             W[:m] = W[4 : 4 + m]
             I[:m] = I[4 : 4 + m]
             lam[:m] = lam[4 : 4 + m]
-            return m, vx0, vy0, vz0, lower <= acc or vn - lower > loose  # a gap if one is shown, else EPA decides
+            return m, vx0, vy0, vz0, lower <= acc or vn - lower > loose, lower  # a gap if shown, else EPA decides
         if inside:
             if face > acc:
-                return 4, 0.0, 0.0, 0.0, True
-            return _compact(W, I, lam, 4), vx, vy, vz, True  # o on the boundary (the witness pass)
-    return m, vx, vy, vz, lower <= acc or vn - lower > loose
+                return 4, 0.0, 0.0, 0.0, True, lower
+            return _compact(W, I, lam, 4), vx, vy, vz, True, lower  # o on the boundary (the witness pass)
+    return m, vx, vy, vz, lower <= acc or vn - lower > loose, lower
 
 
 @jit
@@ -556,8 +558,14 @@ def pair_distance(P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, rtol, atol, eps, witnes
     ex, ey, ez = Rb[0, 2] - s * Ra[0, 2], Rb[1, 2] - s * Ra[1, 2], Rb[2, 2] - s * Ra[2, 2]  # exact
     dax, day, daz = np.float64(Ra[0, 2]), np.float64(Ra[1, 2]), np.float64(Ra[2, 2])  # float64 for float32 data
     cone = cone_box(dax, day, daz, ex, ey, ez, s, L)
-    m, vx, vy, vz, inside = gjk(P, ix, fr, cone, 0.0, 0.0, 0.0, acc, loose, W, I, lam)
+    m, vx, vy, vz, inside, lower = gjk(P, ix, fr, cone, 0.0, 0.0, 0.0, acc, loose, W, I, lam)
     code = GJK_GAP
+    if inside and lower > acc:
+        # GJK stalled short of its accuracy (rounding on nearly coplanar faces of D_L: nearly parallel
+        # axes) but a support plane proves a gap: EPA, which starts from the origin inside, would be
+        # wrong; |v| is attained by the simplex's points, an upper bound within |v| - lower of the gap.
+        inside = False
+        code = GJK_STALLED
     if not inside:
         dist = math.sqrt(vx * vx + vy * vy + vz * vz)
         nx, ny, nz = -vx / dist, -vy / dist, -vz / dist
@@ -571,7 +579,7 @@ def pair_distance(P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, rtol, atol, eps, witnes
     if not witness:
         return dist, tol, code, (nan, nan, nan), (nan, nan, nan)
     if inside:  # split the foot point -dist n (on D's boundary, to within acc) into A and B
-        m, vx, vy, vz, _ = gjk(P, ix, fr, cone, -dist * nx, -dist * ny, -dist * nz, acc, loose, W, I, lam)
+        m, vx, vy, vz, _, _ = gjk(P, ix, fr, cone, -dist * nx, -dist * ny, -dist * nz, acc, loose, W, I, lam)
     px, py, pz = ox, oy, oz
     for j in range(m):
         qx, qy, qz = _pt_a(P[0], P[1], ix[0], fr, I[j, 0])

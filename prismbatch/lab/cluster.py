@@ -1,4 +1,4 @@
-"""Dask execution of :func:`prismbatch.lab.validate` chunks (optional extra ``[dask]``).
+"""Dask execution of :func:`prismbatch.lab.validate` chunks and other lab tasks (optional extra ``[dask]``).
 
 Chunks travel as ``(config, distribution, first block, number of blocks)``:
 workers regenerate their pairs from the seed, so no arrays are shipped and
@@ -11,7 +11,7 @@ import contextlib
 import os
 import signal
 
-__all__ = ["run_chunks", "DASK_MISSING"]
+__all__ = ["run_chunks", "run_tasks", "DASK_MISSING"]
 
 DASK_MISSING = "running on Dask needs dask.distributed: pip install 'prismbatch[dask]'"
 
@@ -42,11 +42,56 @@ def run_chunks(config, specs, done, *, scheduler=None, workers=None):
     done : callable
         ``done(spec, chunk_result)``, called in the client as chunks finish
         (any order; the caller merges in block order).
+    scheduler, workers
+        As :func:`run_tasks`.
+
+    Returns
+    -------
+    dict
+        As :func:`run_tasks`.
+
+    Notes
+    -----
+    The caller warms the Numba cache in-process first; each worker then loads
+    the kernels (:func:`prismbatch.lab.validate.warm`) before chunks are submitted.
+    """
+    if scheduler is None and workers is None:
+        raise ValueError("run_chunks needs a scheduler address or a number of workers")
+    from .validate import run_chunk, warm
+
+    return run_tasks(
+        run_chunk,
+        [(config, *spec) for spec in specs],
+        lambda i, result: done(specs[i], result),
+        warm=(warm, config["dtype"]),
+        scheduler=scheduler,
+        workers=workers,
+        name="validate",
+    )
+
+
+def run_tasks(task, args, done, *, warm, scheduler=None, workers=None, name="tasks"):
+    """Run ``task(*args[i], threads)`` for every i on a Dask cluster; ``done(i, result)`` as each finishes.
+
+    Parameters
+    ----------
+    task : callable
+        A module-level function (it travels by reference); its last argument is the
+        Numba thread count the task should use.
+    args : list of tuple
+        The arguments of each task (small: settings and ranges, or the task's own inputs).
+    done : callable
+        ``done(i, result)``, called in the client as tasks finish (any order).
+    warm : tuple
+        ``(function, *arguments)`` run once on every worker before any task (loads or
+        compiles the kernels there).
     scheduler : str, optional
         Address of an existing scheduler (``Client(address)``).
     workers : int, optional
         Without ``scheduler``: start ``LocalCluster(n_workers=workers,
         threads_per_worker=1, processes=True)`` and close it afterwards.
+    name : str, optional
+        Part of the task keys.
 
     Returns
     -------
@@ -56,19 +101,17 @@ def run_chunks(config, specs, done, *, scheduler=None, workers=None):
 
     Notes
     -----
-    The caller warms the Numba cache in-process first; each worker then loads
-    the kernels (:func:`prismbatch.lab.validate.warm`, with ``client.run``)
-    before chunks are submitted. Every worker's Numba thread count is set to
-    ``max(1, cpus of its host // worker threads on that host)``, so workers
-    do not oversubscribe cores; the count is also passed to each chunk task,
-    because ``numba.set_num_threads`` applies to the calling thread only.
+    Every worker's Numba thread count is set to ``max(1, cpus of its host //
+    worker threads on that host)``, so workers do not oversubscribe cores; the
+    count is also passed to each task, because ``numba.set_num_threads``
+    applies to the calling thread only.
     """
     if scheduler is None and workers is None:
-        raise ValueError("run_chunks needs a scheduler address or a number of workers")
+        raise ValueError("run_tasks needs a scheduler address or a number of workers")
     distributed = _import_distributed()
     import logging
 
-    from .validate import run_chunk, set_numba_threads, warm
+    from .validate import set_numba_threads
 
     cluster = None
     if scheduler is not None:
@@ -96,22 +139,12 @@ def run_chunks(config, specs, done, *, scheduler=None, workers=None):
         per_worker = {addr: max(1, cpus // busy[host]) for addr, (host, cpus) in hosts.items()}
         for addr, k in per_worker.items():
             client.run(set_numba_threads, k, workers=[addr])
-        # each worker loads (or compiles) the kernels before any chunk runs there
-        warmup = client.run(warm, config["dtype"])
+        # each worker loads (or compiles) the kernels before any task runs there
+        warmup = client.run(*warm)
         threads = min(per_worker.values())
-        for spec in specs:
-            d, first, n = spec
-            fut = client.submit(
-                run_chunk,
-                config,
-                d,
-                first,
-                n,
-                threads,
-                pure=False,
-                key=f"prismbatch-validate-{d}-{first}-{n}-{os.getpid()}-{id(specs)}",
-            )
-            futures[fut] = spec
+        for i, a in enumerate(args):
+            fut = client.submit(task, *a, threads, pure=False, key=f"prismbatch-{name}-{i}-{os.getpid()}-{id(args)}")
+            futures[fut] = i
         for fut in distributed.as_completed(list(futures)):
             done(futures[fut], fut.result())
         return {

@@ -19,6 +19,7 @@ __all__ = [
     "workprec_command",
     "reproduce_command",
     "replay_command",
+    "predict_command",
 ]
 
 
@@ -125,6 +126,8 @@ def validate_command(args):
         lp_samples=args.lp_samples,
         contact_check=not args.no_contact_check,
         max_band_records=args.max_band_records,
+        distance_pairs=args.distance_pairs,
+        distance_vertices=args.distance_vertices,
         stiff=stiff,
         scheduler=args.scheduler,
         workers=args.workers,
@@ -206,4 +209,80 @@ def replay_command(args):
     except OSError as exc:
         print(f"prismbatch: error: cannot read {args.file}: {exc.strerror or exc}", file=sys.stderr)
         return 2
+    return 0
+
+
+def predict_command(args):
+    import numpy as np
+
+    from .queries import MEANINGS, answer, csv_table, demo_queries, read_queries
+    from .report import run_metadata, write_csv, write_json
+
+    if args.demo is not None and args.demo < 1:
+        raise ValueError(f"--demo must be at least 1, got {args.demo}")
+    q = demo_queries(args.demo, args.seed) if args.demo is not None else read_queries(args.queries)
+    res = answer(
+        q,
+        horizon=args.horizon,
+        seed=args.seed,
+        quat_order=args.quat_order,
+        workers=args.workers,
+        scheduler=args.scheduler,
+        chunk_size=args.chunk_size,
+        rel_error=args.rel_error,
+        confidence=args.confidence,
+        max_samples=args.max_samples,
+    )
+    toi, pr = res["toi"], res["probability"]
+    source = f"{args.demo} random queries (seed {args.seed})" if args.demo is not None else args.queries
+    summary = {"queries": source}
+    print(f"prismbatch predict: {source}")
+    if toi is not None:
+        hit = np.isfinite(toi.time) & toi.hit
+        summary["time_of_impact"] = {
+            "queries": len(toi),
+            "contact": int(hit.sum()),
+            "clear": int(np.count_nonzero(toi.status == 0)),
+            "undecided": int(np.count_nonzero(toi.status == -1)),
+            "median_iterations": float(np.median(toi.iterations)),
+            "seconds": res["seconds"]["time_of_impact"],
+        }
+        s = summary["time_of_impact"]
+        print(
+            f"time of impact: {s['contact']} contact(s), {s['clear']} clear within the horizon, "
+            f"{s['undecided']} undecided; median {s['median_iterations']:g} steps; {s['seconds']:.2f} s"
+        )
+    if pr is not None:
+        summary["probability"] = {
+            "queries": len(pr.p),
+            "converged": int(pr.converged.sum()),
+            "samples_total": int(pr.samples.sum()),
+            "median_p": float(np.median(pr.p)),
+            "max_p": float(pr.p.max()),
+            "seed": int(pr.seed),
+            "execution": res["execution"],
+            "seconds": res["seconds"]["probability"],
+        }
+        s = summary["probability"]
+        print(
+            f"probability of collision: {s['converged']} of {s['queries']} met --rel-error "
+            f"{args.rel_error:g} at {args.confidence:g} confidence; {s['samples_total']:,} samples; "
+            f"median p {s['median_p']:.3g}, max {s['max_p']:.3g}; {s['seconds']:.2f} s "
+            f"({res['execution']['scheduler']})"
+        )
+    if args.out is None:
+        print("(no files written: pass --out DIR for predict.csv and predict.json)")
+        return 0
+    from pathlib import Path
+
+    out = Path(args.out)
+    csv_path = write_csv(out / "predict.csv", *csv_table(res))
+    settings = {k: getattr(args, k) for k in ("horizon", "rel_error", "confidence", "max_samples", "seed")}
+    json_path = write_json(
+        out / "predict.json",
+        run_metadata(
+            description="prismbatch collision prediction", settings=settings, summary=summary, columns=MEANINGS
+        ),  # fmt: skip
+    )
+    print(f"wrote {csv_path}, {json_path}")
     return 0

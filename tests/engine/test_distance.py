@@ -1,6 +1,6 @@
 """``prismbatch.distance``: the signed distance of two semi-infinite prisms, against independent references.
 
-The references (``tests/distance_reference.py``) share no code with the kernels: the separating-axis
+The references (``prismbatch/lab/distance_ref.py``) share no code with the kernels: the separating-axis
 value over every candidate axis (exactly minus the depth when the bodies overlap), the gap by brute
 force over feature pairs, and a QP by HiGHS with its optimality certificate. Every comparison is in
 units of the pair tolerance ``tol`` (the one ``collide`` uses); the contract checked is
@@ -23,8 +23,8 @@ from scipy.spatial.transform import Rotation
 import prismbatch as pb
 from prismbatch.collide import pair_scale_tolerance
 from prismbatch.distance import PENETRATING, SEPARATED, TOUCHING, DistanceResult, distance
+from prismbatch.lab.distance_ref import Body, gap_features, gap_qp, residual, sat_separation
 
-from distance_reference import Body, gap_features, gap_qp, residual, sat_separation
 from helpers import (
     bisect_to_contact,
     make_pairs,

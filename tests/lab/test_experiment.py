@@ -149,6 +149,50 @@ def test_contact_from_distance_is_the_witness_point_on_a(triangle):
         run_experiment(contact_from="witness", vertices=36, timing=False)
 
 
+def test_alarm_fires_before_the_first_contact(triangle, square):
+    for r in (triangle, square):
+        al = r.alarm
+        assert al["alarm_s"] is not None and al["first_contact_s"] == r.summary["first_collision_s"]
+        assert 0.0 < al["lead_s"] == pytest.approx(al["first_contact_s"] - al["alarm_s"])
+        assert np.all((al["low"] <= al["p"]) & (al["p"] <= al["high"]))
+
+
+def _meets_within(col, g, start, velocity, horizon, steps=4000):
+    """Plain reference: does b, moving from ``start`` at ``velocity``, hit a at any of ``steps`` + 1 instants?"""
+    s = np.linspace(0.0, horizon, steps + 1)[:, None]
+    pos = np.ascontiguousarray(start + s * velocity)
+    return col.collide(g["pos_a"], g["rot_a"], pos, g["rot_b"]).hit.any()
+
+
+def test_alarm_against_sampled_motions(triangle):
+    """Time to impact and the alarm's probability against motions sampled densely with collide."""
+    from prismbatch import Collider
+    from prismbatch.lab.experiment.alarm import collision_alarm, commanded_velocity
+
+    g = triangle.geometry
+    a, b = Prism(g["xy_a"]), Prism.regular(VERTS, 0.5 * triangle.params["b_diameter_mm"])
+    col = Collider(a, b)
+    al = collision_alarm(triangle, col, samples=40, every=25, seed=3)
+    vel = commanded_velocity(triangle)
+    for k in range(0, len(triangle.t), 50):  # the nominal time to impact
+        toi = al["toi_s"][k]
+        if np.isfinite(toi):
+            assert not _meets_within(col, g, triangle.dc[k], vel[k], toi * (1 - 1e-6))
+            d = distance(a, b, g["pos_a"], g["rot_a"], triangle.dc[k] + toi * vel[k], g["rot_b"])
+            assert d.distance[0] <= d.tol[0]
+        else:
+            assert not _meets_within(col, g, triangle.dc[k], vel[k], 1.0)
+    # the probability: the same noise draws, each motion judged by dense sampling
+    rng = np.random.default_rng(3)
+    ks = np.arange(0, len(triangle.t), 25)
+    noise = rng.standard_normal((len(ks), 40, 3)) * (al["sigma_um"] * 1e-3)
+    mixed = [j for j in range(len(ks)) if 0 < al["p"][j] < 1]
+    for j in [*mixed[:2], int(np.argmax(al["p"])), 0]:
+        k = ks[j]
+        hits = sum(_meets_within(col, g, triangle.dc[k] + noise[j, i], vel[k], 1.0) for i in range(40))
+        assert abs(hits - 40 * al["p"][j]) <= 1, (triangle.t[k], hits, al["p"][j])  # sampling may miss a graze
+
+
 def test_bad_parameters():
     with pytest.raises(ValueError, match="plant"):
         run_experiment(plant="mass", vertices=36, timing=False)
@@ -190,7 +234,10 @@ def test_writer(square, tmp_path):
 def test_writer_figures(square, tmp_path):
     pytest.importorskip("matplotlib")
     paths = write_experiment(square, tmp_path, figures=True)
-    assert len(paths["figures"]) == 6
+    assert len(paths["figures"]) == 8  # Figs. 10, 11a, 11b-c and the alarm, PNG and SVG each
+    assert any(f.endswith("_alarm.png") for f in paths["figures"])
+    alarm = open(paths["alarm_csv"]).read().splitlines()
+    assert alarm[0].startswith("t_s,p_collision_within_horizon") and len(alarm) == 1 + len(square.alarm["p"])
     for f in paths["figures"]:
         data = open(f, "rb").read()
         assert len(data) > 5000

@@ -284,6 +284,8 @@ def test_standin_rule_parallel_and_bad_args():
         (dict(workers=0), "workers"),
         (dict(stiff="yes"), "stiff"),
         (dict(seed=-1), "seed"),
+        (dict(distance_pairs=-1), "distance_pairs"),
+        (dict(distance_vertices=(2,)), "distance_vertices"),
     ],
 )
 def test_bad_arguments(kw, match):

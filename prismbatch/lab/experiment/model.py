@@ -55,6 +55,7 @@ class ExperimentResult:
     geometry: dict  # shapes and poses: xy_a, xy_b, xy_b_real, pos_a, rot_a, rot_b
     summary: dict = field(default_factory=dict)
     timing: dict = field(default_factory=dict)
+    alarm: dict = field(default_factory=dict)  # collision alarm (alarm.collision_alarm); empty if not run
 
     @property
     def error(self):

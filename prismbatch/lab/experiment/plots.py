@@ -14,7 +14,7 @@ from .model import UM
 
 
 def plot_experiment(res, out_dir, *, stem="experiment"):
-    """Draw the three figures (PNG and SVG): cf. the paper's Figs. 10, 11a and 11b-c.
+    """Draw the figures (PNG and SVG): cf. the paper's Figs. 10, 11a and 11b-c, and the collision alarm.
 
     Parameters
     ----------
@@ -32,6 +32,8 @@ def plot_experiment(res, out_dir, *, stem="experiment"):
     files += _plot_contours(res, out_dir, f"{stem}_fig10_contours")
     files += _plot_trajectory(res, out_dir, f"{stem}_fig11a_trajectory")
     files += _plot_states(res, out_dir, f"{stem}_fig11bc_states_forces")
+    if res.alarm:
+        files += _plot_alarm(res, out_dir, f"{stem}_alarm")
     return files
 
 
@@ -189,4 +191,48 @@ def _plot_states(res, out, name):
             ax.axvline(t[k], color="tab:red", lw=0.7, ls=":")
         ax.grid(alpha=0.3)
         ax.legend(loc="upper right", fontsize=8, ncol=4 if ax is not axs[0] else 4)
+    return save_figure(fig, out, name)
+
+
+def _plot_alarm(res, out, name):
+    """Time to impact and probability of a collision within the horizon against time, contacts marked."""
+    al, t = res.alarm, res.t
+    fig = new_figure(figsize=(9.0, 6.0), layout="constrained")
+    ax1, ax2 = fig.subplots(2, 1, sharex=True)
+    toi = np.where(np.isfinite(al["toi_s"]), al["toi_s"], np.nan)  # inf (clear) left out
+    ax1.plot(t, toi, color="tab:blue", lw=1.2, label="time to impact (measured position)")
+    ax1.axhline(al["horizon_s"], color="0.5", ls="--", lw=0.8, label=f"horizon {al['horizon_s']:g} s")
+    ax1.set_ylabel("time to impact (s)")
+    ax1.set_ylim(0.0, 1.05 * al["horizon_s"])
+    ax1.set_title(
+        f"{res.params['prism']} prism: (a) time to impact along the commanded motion,\n(b) probability of a "
+        f"collision within {al['horizon_s']:g} s under camera noise of {al['sigma_um']:g} µm per axis",
+        fontsize=10,
+    )
+    te = al["t_eval"]
+    ax2.fill_between(
+        te,
+        al["low"],
+        al["high"],
+        step="mid",
+        color="tab:orange",
+        alpha=0.3,
+        lw=0,
+        label=f"{100 * al['confidence']:g} % interval",
+    )
+    ax2.step(te, al["p"], where="mid", color="tab:orange", label=f"p ({al['samples']} samples)")
+    ax2.axhline(al["threshold"], color="0.3", ls="--", lw=0.8, label=f"alarm threshold {al['threshold']:g}")
+    ax2.set_ylabel("P(collision within horizon)")
+    ax2.set_ylim(-0.02, 1.02)
+    ax2.set_xlabel("time (s)")
+    for ax in (ax1, ax2):
+        for k in np.flatnonzero(res.hit):
+            ax.axvline(t[k], color="tab:red", lw=0.8, ls=":")
+        if al["alarm_s"] is not None:
+            ax.axvline(al["alarm_s"], color="tab:green", lw=1.0)
+        ax.plot([], [], color="tab:red", lw=0.8, ls=":", label="contact (collide)")
+        if al["alarm_s"] is not None:
+            ax.plot([], [], color="tab:green", lw=1.0, label=f"alarm at {al['alarm_s']:.2f} s")
+        ax.grid(alpha=0.3)
+        ax.legend(loc="upper right", fontsize=8)
     return save_figure(fig, out, name)

@@ -86,6 +86,7 @@ def format_summary(res):
         + (f"{len(later)} (at " + ", ".join(f"{x:.2f}" for x in later) + " s)" if later else "none")
         + " (paper: none)"
     )
+    lines += alarm_lines(res.alarm)
     if tm:
         line = (
             f"detection cost over {p['n_samples']} samples: prismbatch {tm['loop_ms']:.1f} ms in the loop "
@@ -109,6 +110,32 @@ def format_summary(res):
             f"   compile or cache load (excluded): collide {c['collide_pair'] + c['collide_batch']:.2f} s, "
             f"detach {c['detach']:.2f} s; detach controller calls {tm['detach_ms']:.2f} ms"
         )
+    return lines
+
+
+def alarm_lines(al):
+    """The collision alarm's summary lines (none if it was not computed)."""
+    if not al:
+        return []
+    fin = np.flatnonzero(np.isfinite(al["toi_s"]))
+    head = (
+        f"collision alarm ({al['horizon_s']:g} s ahead along the commanded motion; camera noise "
+        f"{al['sigma_um']:g} µm per axis, {al['samples']} noisy positions every {al['every']} samples; "
+        f"fires at p >= {al['threshold']:g}): "
+    )
+    if al["alarm_s"] is None:
+        head += "never fired"
+    else:
+        head += f"fires at {al['alarm_s']:.2f} s"
+        if al["lead_s"] is not None:
+            head += f", {al['lead_s']:.2f} s before the first contact ({al['first_contact_s']:.2f} s)"
+    lines = [head]
+    lines.append(
+        "   time to impact from the measured position: "
+        + (f"first within the horizon at {al['first_toi_s']:.2f} s" if len(fin) else "never within the horizon")
+        + f"; {al['undecided']} noisy motion(s) undecided (counted as collisions); "
+        f"{al['seconds']:.2f} s to compute (+{al['compile_s']:.2f} s compile or cache load)"
+    )
     return lines
 
 
@@ -136,8 +163,10 @@ def _csv_rows(res):
         "u_d_y",
         "u_d_z",
         "detect_us",
+        "time_to_impact_s",
     ]
     err = res.error
+    toi = res.alarm["toi_s"] if res.alarm else np.full(len(res.t), np.nan)
     rows = []
     for k in range(len(res.t)):
         rows.append(
@@ -153,8 +182,19 @@ def _csv_rows(res):
                 *(f"{v * unit:.4f}" for v in res.u_pd[k]),
                 *(f"{v * unit:.4f}" for v in res.u_d[k]),
                 f"{res.detect_s[k] * 1e6:.2f}",
+                "" if np.isnan(toi[k]) else f"{toi[k]:.6g}",  # inf: clear for the alarm's horizon
             ]
         )
+    return header, rows
+
+
+def _alarm_csv_rows(al):
+    """The alarm's probability at its evaluated samples, with the interval."""
+    header = ["t_s", "p_collision_within_horizon", "low", "high", "samples"]
+    rows = [
+        [f"{t:.4f}", f"{p:.6g}", f"{lo:.6g}", f"{hi:.6g}", al["samples"]]
+        for t, p, lo, hi in zip(al["t_eval"], al["p"], al["low"], al["high"])
+    ]
     return header, rows
 
 
@@ -253,6 +293,20 @@ def _markdown(res, figure_files):
         "- See `docs/methods/experiment.md` for the full description.",
         "",
     ]
+    if res.alarm:
+        al = res.alarm
+        L += [
+            "## Collision alarm",
+            "",
+            f"At every sample: the time to impact along the commanded motion held for {al['horizon_s']:g} s "
+            f"(`prismbatch.motion.time_of_impact`), and every {al['every']} samples the probability that the "
+            f"motion collides within that time when the measured position is off by the cameras' noise "
+            f"({al['sigma_um']:g} µm per axis, {al['samples']} noisy positions, Wilson interval at "
+            f"{al['confidence']:g}). The alarm fires at p >= {al['threshold']:g}.",
+            "",
+            *(f"- {line.strip()}" for line in alarm_lines(al)),
+            "",
+        ]
     if figure_files:
         L += ["## Figures", ""] + [f"- [{Path(f).name}]({Path(f).name})" for f in figure_files if f.endswith(".png")]
     return "\n".join(L) + "\n"
@@ -288,6 +342,9 @@ def write_experiment(res, out_dir, *, figures=True):
     }
     write_csv(paths["csv"], *_csv_rows(res))
     write_csv(paths["contours_csv"], *_contour_csv_rows(res))
+    if res.alarm:
+        paths["alarm_csv"] = str(out / f"{stem}_alarm.csv")
+        write_csv(paths["alarm_csv"], *_alarm_csv_rows(res.alarm))
     if figures:
         paths["figures"] = plot_experiment(res, out, stem=stem)
     meta = run_metadata(
@@ -295,6 +352,7 @@ def write_experiment(res, out_dir, *, figures=True):
         parameters=res.params,
         summary=res.summary,
         timing=res.timing,
+        alarm={k: v for k, v in res.alarm.items() if not isinstance(v, np.ndarray)},
         paper=PAPER,
         cases={int(k): v for k, v in CASES.items()},
         contact_classes=CONTACT_CLASSES,

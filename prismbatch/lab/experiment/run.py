@@ -17,6 +17,7 @@ from ...control import detach
 from ...distance import SEPARATED
 from ...sampling import rotation_with_axis
 from ...shapes import Prism
+from .alarm import collision_alarm
 from .model import CONTACT_FROM, PLANTS, PRISMS, UM, ExperimentResult, batch_poses
 from .summary import summarise
 from .timing import replay_timing
@@ -255,6 +256,7 @@ def run_experiment(
     timing=True,
     fcl=True,
     repeats=3,
+    alarm=True,
 ):
     """Simulate the paper's experiment; docs/methods/experiment.md describes the model.
 
@@ -304,6 +306,11 @@ def run_experiment(
         Include python-fcl in the replay (skipped with a note if not installed).
     repeats : int
         Replays are repeated this many times and the fastest is kept.
+    alarm : bool
+        Also compute the collision alarm along the run
+        (:func:`prismbatch.lab.experiment.alarm.collision_alarm`, default
+        settings): time to impact and the probability of a collision within
+        the next second at every sample.
 
     Returns
     -------
@@ -379,6 +386,8 @@ def run_experiment(
         params, t, tr.dc, tr.case, tr.hit, tr.cls, tr.contact, tr.direction, tr.u_pd, tr.u_d, tr.detect_s, geometry
     )
     res.summary = summarise(res, tr.tol_used)
+    if alarm:
+        res.alarm = collision_alarm(res, col)
     res.timing = dict(
         compile_s=compile_s,
         loop_ms=1e3 * float(tr.detect_s.sum()),

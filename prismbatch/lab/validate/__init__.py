@@ -6,7 +6,8 @@ touching band, stand-ins, contact check) is described in ``docs/methods/validati
 
 Modules: ``config`` (settings, constants, seeding), ``generate`` (shapes and poses),
 ``blocks`` (one block: prismbatch, FCL, the LP), ``arbitrate`` (who is wrong), ``merge``
-(counters, :class:`ValidationResult`), ``driver`` (:func:`validate`), ``output`` (reports).
+(counters, :class:`ValidationResult`), ``distance`` (the signed-distance section, against
+:mod:`prismbatch.lab.distance_ref` and coal), ``driver`` (:func:`validate`), ``output`` (reports).
 """
 
 from .blocks import residuals as residuals

@@ -238,7 +238,7 @@ def run_chunk(config, distribution, first_block, n_blocks, threads=None):
     config : dict
         From :func:`make_config`.
     distribution : str
-        Distribution name.
+        Distribution name, or ``"distance"`` for blocks of the distance section.
     first_block, n_blocks : int
         Block range.
     threads : int or None, optional
@@ -252,6 +252,10 @@ def run_chunk(config, distribution, first_block, n_blocks, threads=None):
     """
     if threads is not None:
         set_numba_threads(threads)
+    if distribution == "distance":  # the distance section's blocks (.distance)
+        from .distance import process_distance_block
+
+        return [process_distance_block(config, b) for b in range(first_block, first_block + n_blocks)]
     return [process_block(config, distribution, b, threads) for b in range(first_block, first_block + n_blocks)]
 
 

@@ -13,6 +13,9 @@ from ...collide import DEFAULT_RTOL
 from ...config import LP_TRUST_RTOL
 from ..checks import is_int
 
+#: Pairs of the distance section when not given: at most this many (and at most n_pairs).
+DEFAULT_DISTANCE_PAIRS = 1000
+
 #: Pairs per block: the unit of generation and seeding (not the chunk size).
 BLOCK_SIZE = 4096
 
@@ -121,6 +124,8 @@ def make_config(
     lp_samples=2000,
     contact_check=True,
     max_band_records=1000,
+    distance_pairs=None,
+    distance_vertices=(3, 36),
 ):
     """Check the validation settings and return them as a plain, JSON-able dict.
 
@@ -158,6 +163,14 @@ def make_config(
         raise TypeError(f"contact_check must be True or False, got {contact_check!r}")
     if not is_int(max_band_records) or max_band_records < 0:
         raise ValueError(f"max_band_records must be an integer >= 0, got {max_band_records!r}")
+    if distance_pairs is None:
+        distance_pairs = min(DEFAULT_DISTANCE_PAIRS, int(n_pairs))
+    if not is_int(distance_pairs) or distance_pairs < 0:
+        raise ValueError(f"distance_pairs must be an integer >= 0 (0: no distance section), got {distance_pairs!r}")
+    dv = (distance_vertices,) if is_int(distance_vertices) else tuple(distance_vertices)
+    if not dv or any(not is_int(v) or v < 3 for v in dv):
+        raise ValueError(f"distance_vertices must be an integer >= 3 or a sequence of them, got {distance_vertices!r}")
+    distance_vertices = dv
     return {
         "n_pairs": int(n_pairs),
         "distributions": list(distributions),
@@ -171,6 +184,8 @@ def make_config(
         "lp_samples": int(lp_samples),
         "contact_check": bool(contact_check),
         "max_band_records": int(max_band_records),
+        "distance_pairs": int(distance_pairs),
+        "distance_vertices": [int(v) for v in distance_vertices],
         "block_size": BLOCK_SIZE,
         "lp_rel": LP_REL,
     }

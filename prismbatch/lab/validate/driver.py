@@ -12,17 +12,22 @@ from ..checkpoint import Checkpoint, Interrupted
 from ..checks import is_int
 from .blocks import run_chunk, warm
 from .config import block_len, make_config, n_blocks
+from .distance import distance_block_len, n_distance_blocks
 from .merge import Merger, ValidationResult
 
 
 def _chunk_specs(cfg, chunk_size):
     per = max(1, int(round(chunk_size / cfg["block_size"])))
     nb = n_blocks(cfg)
-    return [(d, first, min(per, nb - first)) for d in cfg["distributions"] for first in range(0, nb, per)]
+    specs = [(d, first, min(per, nb - first)) for d in cfg["distributions"] for first in range(0, nb, per)]
+    # the distance section: one block a chunk (each costs seconds), after the pairs
+    return specs + [("distance", b, 1) for b in range(n_distance_blocks(cfg))]
 
 
 def _spec_pairs(cfg, spec):
     d, first, n = spec
+    if d == "distance":
+        return sum(distance_block_len(cfg, b) for b in range(first, first + n))
     return sum(block_len(cfg, b) for b in range(first, first + n))
 
 
@@ -47,6 +52,10 @@ def _require_extras(cfg):
         from ..peers import import_fcl
 
         import_fcl()
+    if cfg["distance_pairs"] > 0:  # the reference's QP cross-check
+        from ..distance_ref import import_highspy
+
+        import_highspy()
 
 
 def _unit(spec):
@@ -63,7 +72,7 @@ def _run_chunks(cfg, specs, merger, scheduler, workers, progress, ckpt):
     from ..report import numba_threads
     from ..report import progress as _progress
 
-    total = cfg["n_pairs"] * len(cfg["distributions"])
+    total = cfg["n_pairs"] * len(cfg["distributions"]) + cfg["distance_pairs"]
     with _progress(total, enabled=progress, unit="pair", desc="validate") as bar:
 
         def done(spec, chunk, loaded=False):
@@ -106,6 +115,8 @@ def validate(
     lp_samples=2000,
     contact_check=True,
     max_band_records=1000,
+    distance_pairs=None,
+    distance_vertices=(3, 36),
     stiff=False,
     scheduler=None,
     workers=None,
@@ -155,6 +166,17 @@ def validate(
         "inside band" records kept (the first ones in block order; they are
         allowed and plentiful near contact). Every other record is kept; all
         are counted.
+    distance_pairs : int, optional
+        Pairs of the distance section (default: the smaller of 1,000 and
+        ``n_pairs``; 0: no section): prismbatch's signed distance, its witness
+        points and its sign against ``collide``, and coal's distance when
+        installed, against the exact reference, per distance bucket
+        (``docs/methods/validation.md``). Milliseconds a pair for 3- and
+        36-gons, a second for two 360-gons (the reference visits every pair
+        of edges).
+    distance_vertices : int or sequence of int, optional
+        Vertex counts of the distance section, cycled over its blocks like
+        ``vertices`` (default 3 and 36); its shape kinds are ``shapes``.
     stiff : bool or "quick", optional
         Also run ``prismbatch.lab.stiff.run_stiff_suite`` (in-process).
     scheduler : str, optional
@@ -200,6 +222,8 @@ def validate(
         lp_samples=lp_samples,
         contact_check=contact_check,
         max_band_records=max_band_records,
+        distance_pairs=distance_pairs,
+        distance_vertices=distance_vertices,
     )
     _check_run_options(chunk_size, stiff, workers, scheduler)
     _require_extras(cfg)
@@ -213,6 +237,8 @@ def validate(
 
     def result(execution, rep=None, partial=None):
         wall = time.perf_counter() - t_start  # the Monte Carlo run; the stiff suite reports its own time
+        pairs = merger.distance.pairs()
+        dist = None if pairs is None else {"pairs": pairs, "times": merger.distance.times}
         return ValidationResult(
             cfg,
             merger.counts,
@@ -225,6 +251,7 @@ def validate(
             rep,
             partial=partial,
             checkpoint=ckpt,
+            distance=dist,
         )
 
     try:

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .config import CASE_COUNTERS, DISTRIBUTION_NAMES, INT_COUNTERS, MAX_COUNTERS, NC, TIMES
+from .distance import DISTANCE_KEY, DistanceMerger, failures
 
 
 def empty_counts():
@@ -83,6 +84,10 @@ class ValidationResult:
         For a run stopped early: ``pairs_done`` and ``pairs_total``.
     checkpoint : Checkpoint or None
         Where finished chunks were saved (removed once the full report is written).
+    distance : dict or None
+        The distance section: ``pairs`` (per-pair arrays, :data:`.distance.PAIR_FIELDS`, in
+        block order) and ``times`` (per bucket: seconds of prismbatch and coal, pairs); None
+        when it did not run.
     """
 
     config: dict
@@ -96,6 +101,12 @@ class ValidationResult:
     stiff: object = None
     partial: dict = None
     checkpoint: object = None
+    distance: dict = None
+
+    def distance_failures(self):
+        """Pairs of the distance section beyond 10 tol, with witnesses off, the sign against collide
+        wrong or a reference gap left unconfirmed (0 without the section)."""
+        return 0 if self.distance is None else int(failures(self.distance["pairs"]).sum())
 
     def totals(self):
         """Counters summed over the distributions."""
@@ -107,7 +118,8 @@ class ValidationResult:
     @property
     def ok(self):
         """True when prismbatch has no disagreement outside the band (nor an unarbitrated one), no
-        invalid contact and no non-finite or invalid output (the stiff suite reports its own)."""
+        invalid contact, no non-finite or invalid output and no failure of the distance section
+        (the stiff suite reports its own)."""
         t = self.totals()
         return (
             int(t["fcl_out_pb"].sum()) == 0
@@ -118,11 +130,15 @@ class ValidationResult:
             and t["nonfinite"] == 0
             and t["bad_case"] == 0
             and t["status_mismatch"] == 0
+            and self.distance_failures() == 0
         )
 
     def outcome(self):
         """Everything that must not depend on chunking or workers (no timings)."""
+        nan_free = lambda v: [None if x != x else x for x in v.tolist()]  # noqa: E731 (NaN != NaN)
+        dist = None if self.distance is None else {k: nan_free(v) for k, v in self.distance["pairs"].items()}
         return {
+            "distance": dist,
             "config": self.config,
             "records_total": self.records_total,
             "records": self.records,
@@ -143,11 +159,15 @@ class Merger:
         self.records = []
         self.total = 0
         self.band_total = 0
+        self.distance = DistanceMerger()
 
     def add(self, chunk):
         """Merge one chunk: a list of ``(key, counts, times, records)`` per block (:func:`run_chunk`)."""
         new = []
         for key, c, t, recs in chunk:
+            if key[0] == DISTANCE_KEY:
+                self.distance.add(key[1], c, t)
+                continue
             d = DISTRIBUTION_NAMES[key[0]]
             merge_counts(self.counts[d], c)
             for k, v in t.items():

@@ -8,6 +8,7 @@ import numpy as np
 
 from ..report import fmt, write_text
 from .config import DISTRIBUTION_NAMES, NC
+from .distance import DISTANCE_HEADER, DISTANCE_LIMIT, distance_json, distance_lines, distance_markdown, distance_rows
 
 #: Columns of validation_summary.csv (one row per distribution and a total row).
 SUMMARY_HEADER = [
@@ -212,6 +213,7 @@ def format_validation(result):
         f"records: {result.records_total} disagreement(s) in all, {len(result.records)} saved "
         f"({', '.join(f'{k}: {v}' for k, v in kinds.items()) or 'none'})"
     )
+    L.extend(distance_lines(result))
     L.append("RESULT: " + _verdict(result))
     if result.stiff is not None:
         L.extend(result.stiff.summary_lines())
@@ -232,14 +234,19 @@ def _verdict(result):
 
 def _verdict_of_pairs(result, cfg):
     if not result.ok:
-        return "FAILURES (see the records)"
+        n = result.distance_failures()
+        return "FAILURES (see the records" + (f"; {n} distance pairs failed)" if n else ")")
+    dist = ""
+    if result.distance is not None:
+        n = len(result.distance["pairs"]["pb"])
+        dist = f"; signed distances within {DISTANCE_LIMIT:g} tol of the exact reference on {n:,} pairs"
     if cfg["fcl_fraction"] == 0.0 and cfg["lp_samples"] == 0:
         checked = "contacts valid" if cfg["contact_check"] else "nothing else checked either"
         return (
             "NO COMPARISON: no reference ran (FCL off and --lp-samples 0), so hit/miss answers were not "
-            f"checked; {checked}"
+            f"checked; {checked}{dist}"
         )
-    return "OK, no disagreement outside the touching band, contacts valid"
+    return "OK, no disagreement outside the touching band, contacts valid" + dist
 
 
 def _markdown(result):
@@ -327,6 +334,9 @@ def _markdown(result):
         f"{result.records_total} records ({len(result.records)} kept in `validation_replay.json`), with full "
         "inputs (shapes, poses, seed, spawn key).",
     ]
+    dist = distance_markdown(result)
+    if dist:
+        L += ["", *dist]
     if result.stiff is not None:  # its long tables live in their own file
         L += [
             "",
@@ -364,8 +374,9 @@ def write_validation(result, out_dir):
         Paths: ``markdown`` (validation.md), ``summary_csv``
         (validation_summary.csv), ``cases_csv`` (validation_cases.csv),
         ``json`` (validation.json: run metadata, config, seeds, counts,
-        times), ``replay`` (validation_replay.json) and ``stiff`` (a list of
-        the stiff suite's CSV files, empty without it).
+        times), ``replay`` (validation_replay.json), ``distance_csv``
+        (validation_distance.csv, with the distance section) and ``stiff`` (a
+        list of the stiff suite's CSV files, empty without it).
     """
     from pathlib import Path
 
@@ -400,8 +411,12 @@ def write_validation(result, out_dir):
             "records_total": result.records_total,
             "records_kept": len(result.records),
             "stiff": None if result.stiff is None else result.stiff.json(),
+            "distance": distance_json(result),
         },
     )
+    if result.distance is not None:
+        rows = distance_rows(**result.distance)
+        paths["distance_csv"] = write_csv(out / "validation_distance.csv", DISTANCE_HEADER, rows)
     paths["replay"] = _write_replay(
         out / "validation_replay.json",
         result.records,

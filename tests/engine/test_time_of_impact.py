@@ -1,0 +1,272 @@
+"""prismbatch.motion.time_of_impact against closed forms and a sampling-and-bisection reference."""
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+import prismbatch as pb
+from prismbatch.motion import CLEAR, CONTACT, UNDECIDED, time_of_impact
+
+DOWN = np.diag([1.0, -1.0, -1.0])  # a's axis points down: a's body is z <= 0 below its end face at z = 0
+SQUARE = pb.Prism.regular(4, math.sqrt(2.0), phase=math.pi / 4)  # the square [-1, 1]^2
+
+
+def rot_z(phi):
+    c, s = math.cos(phi), math.sin(phi)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def rodrigues(w, t):
+    """exp(t [w]x), written independently of the kernel (matrix exponential of the skew matrix)."""
+    th = np.linalg.norm(w) * t
+    if th == 0.0:
+        return np.eye(3)
+    k = np.asarray(w, float) / np.linalg.norm(w)
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + math.sin(th) * K + (1.0 - math.cos(th)) * K @ K
+
+
+# --- closed forms ---------------------------------------------------------------------------------
+
+
+def test_straight_approach():
+    b = pb.Prism.regular(6, 0.5)
+    h = np.array([0.5, 1.0, 3.0, 10.0])
+    speed = np.array([1.0, 7.0, 0.25, 100.0])
+    pos_b = np.column_stack([0.3 * np.ones(4), -0.2 * np.ones(4), h])
+    vel = np.column_stack([np.zeros(4), np.zeros(4), -speed])
+    r = time_of_impact(SQUARE, b, [0, 0, 0], DOWN, pos_b, np.eye(3), vel, horizon=1e3, pose=True, contact=True)
+    assert (r.status == CONTACT).all()
+    tol = pb.distance(SQUARE, b, [0, 0, 0], DOWN, r.pos_b, r.rot_b).tol
+    exact = h / speed
+    # the reported time lies between the first time within tol and the touching time
+    assert np.all(r.time <= exact + 1e-12 * exact) and np.all(r.time >= exact - 1.01 * tol / speed)
+    assert np.allclose(r.contact[:, 2], 0.0, atol=1e-8) and np.allclose(r.contact[:, :2], [0.3, -0.2], atol=0.5)
+
+
+def test_fast_pass_across_a_corner_is_not_tunnelled():
+    # A diamond (radius 0.1) whose lowest vertex dips 0.05 into a's side y = 1 passes at 400 units/s:
+    # it overlaps a for 0.0053 s, between the 0.02 s samples, which see nothing.
+    b = pb.Prism.regular(4, 0.1)
+    x0, y0, speed = -3.5, 1.05, 400.0
+    pos_b, rot_b, vel = [x0, y0, -0.5], np.eye(3), [speed, 0.0, 0.0]
+    samples = np.arange(0.0, 0.1, 0.02)
+    seen = pb.collide(SQUARE, b, [0, 0, 0], DOWN, np.array(pos_b) + np.outer(samples, vel), rot_b).hit
+    assert not seen.any()
+    r = time_of_impact(SQUARE, b, [0, 0, 0], DOWN, pos_b, rot_b, vel, horizon=0.1, contact=True)
+    # the diamond's lower-right edge reaches a's corner (-1, 1) when its centre is at x = -1 - 0.1 + 0.05
+    exact = (-1.05 - x0) / speed
+    assert r.status[0] == CONTACT
+    assert exact - 1e-8 <= r.time[0] <= exact + 1e-12
+    assert np.allclose(r.contact[0], [-1.0, 1.0, -0.25], atol=0.26)  # on a's lateral edge, z in [-0.5, 0]
+
+
+@pytest.mark.parametrize("omega", [2.0, 50.0, 5000.0])
+def test_polygon_spinning_about_its_axis_into_a_side_face(omega):
+    # A square of radius 1 spinning about its own (vertical) axis, its centre 0.9 off a's face x = 1:
+    # the vertex at 135 degrees reaches x = 1 after turning by arccos(-0.9) - 135 degrees.
+    b = pb.Prism.regular(4, 1.0, phase=math.pi / 4)
+    g = 0.9
+    r = time_of_impact(SQUARE, b, [0, 0, 0], DOWN, [1.0 + g, 0.0, -0.5], np.eye(3), [0, 0, 0], [0, 0, omega],
+                       horizon=10.0, pose=True, contact=True)  # fmt: skip
+    exact = (math.acos(-g) - 0.75 * math.pi) / omega
+    assert r.status[0] == CONTACT
+    assert exact * (1 - 1e-6) <= r.time[0] <= exact * (1 + 1e-12)
+    assert np.allclose(r.rot_b[0], rot_z(omega * r.time[0]), atol=1e-12)
+    assert abs(r.contact[0, 0] - 1.0) < 1e-6 and abs(r.contact[0, 1] - math.sin(math.acos(-g))) < 1e-5
+
+
+def test_far_part_of_a_turning_body_sweeps_into_a():
+    # b's end face is 5 away from a, its body points away; turning about z swings the body round:
+    # its far part, not its end face, hits a's corner (-1, 1), moving at |w| * 4.1 there.
+    b = pb.Prism.regular(4, 0.01)
+    rot_b = np.array([[1.0, 0, 0], [0, 0, 1.0], [0, -1.0, 0]])  # b's axis along +y
+    w = 3.0
+    r = time_of_impact(SQUARE, b, [0, 0, 0], DOWN, [0, 5.0, -0.5], rot_b, [0, 0, 0], [0, 0, w], horizon=5.0)
+    phi = math.atan2(-4.0, -1.0) % (2 * math.pi) - math.pi / 2  # the turn until the axis meets (-1, 1)
+    assert r.status[0] == CONTACT
+    # b's half-width 0.01 at a lever of sqrt(17) makes it touch up to 0.01 / sqrt(17) rad earlier
+    assert (phi - 0.011 / math.sqrt(17)) / w <= r.time[0] <= phi / w + 1e-12
+
+
+def test_already_touching_is_zero_and_moving_away_is_inf():
+    b = pb.Prism.regular(6, 0.5)
+    pos_b = [[0, 0, -0.1], [0, 0, 0.0], [0, 0, 0.5], [0, 0, 0.5]]
+    vel = [[0, 0, 1.0], [0, 0, 1.0], [0, 0, 1.0], [1.0, 0, 0]]
+    r = time_of_impact(SQUARE, b, [0, 0, 0], DOWN, pos_b, np.eye(3), vel, [[0, 0, 0.1]] * 4, horizon=2.0, pose=True)
+    assert r.status.tolist() == [CONTACT, CONTACT, CLEAR, CLEAR]
+    assert r.time[:2].tolist() == [0.0, 0.0] and np.isinf(r.time[2:]).all()
+    assert r.iterations[:2].tolist() == [0, 0] and np.isnan(r.pos_b[2:]).all() and np.isnan(r.distance[2:]).all()
+
+
+# --- the sampling-and-bisection reference ---------------------------------------------------------
+
+
+def reference_first(col, pos_a, rot_a, pos_b, rot_b, v, w, horizon, level, bound, grid=256, min_width=1e-9):
+    """First time in [0, horizon] with distance <= level (None if there is none), to within min_width.
+
+    d(t) sampled on a grid; an interval [t0, t1] is clear when d(t0) + d(t1) - 2 level > bound (t1 - t0),
+    ``bound`` a speed no point of b that can come within ``level`` of a exceeds on these motions;
+    otherwise it is split in 16, in order, down to ``min_width`` (then reported as the first time).
+    """
+
+    def d(ts):
+        P = pos_b + np.outer(ts, v)
+        R = np.array([rodrigues(w, t) @ rot_b for t in ts])
+        return col.distance(pos_a, rot_a, P, R, parallel=False).distance
+
+    def first(t0, t1, n):
+        ts = np.linspace(t0, t1, n + 1)
+        ds = d(ts)
+        for j in range(n):
+            if ds[j] <= level:
+                return ts[j]
+            if ds[j] + ds[j + 1] - 2 * level > bound * (ts[j + 1] - ts[j]):
+                continue
+            if ts[j + 1] - ts[j] < min_width:
+                return ts[j]
+            found = first(ts[j], ts[j + 1], 16)
+            if found is not None:
+                return found
+        return ts[n] if ds[n] <= level else None
+
+    return first(0.0, horizon, grid)
+
+
+def random_motions(rng, n, b_radius):
+    """Facing poses (b above a, its axis within 0.3 rad of up) and motions that turn it by at most 0.5 rad."""
+    pos_b = np.column_stack([rng.uniform(-2, 2, n), rng.uniform(-2, 2, n), rng.uniform(0.2, 3.0, n)])
+    tilt = [rodrigues(rng.normal(size=3), rng.uniform(0, 0.3)) for _ in range(n)]
+    target = np.column_stack([rng.uniform(-1.5, 1.5, n), rng.uniform(-1.5, 1.5, n), rng.uniform(-1.0, 0.0, n)])
+    vel = (target - pos_b) * rng.uniform(0.3, 2.0, (n, 1))  # mostly towards a, some passing by
+    vel += rng.normal(scale=0.5, size=(n, 3))
+    w = rng.normal(size=(n, 3))
+    w *= rng.uniform(0, 0.5, (n, 1)) / np.linalg.norm(w, axis=1, keepdims=True)
+    return pos_b, np.array(tilt), vel, w
+
+
+@pytest.mark.parametrize("nb", [6, 36])
+def test_random_motions_against_sampling_and_bisection(nb):
+    rng = np.random.default_rng(nb)
+    b = pb.Prism.regular(nb, 0.7)
+    a = pb.Prism.regular(5, 2.0)
+    n, horizon = 24, 1.0
+    pos_b, rot_b, vel, w = random_motions(rng, n, 0.7)
+    col = pb.Collider(a, b)
+    r = col.time_of_impact([0, 0, 0], DOWN, pos_b, rot_b, vel, w, horizon=horizon, pose=True)
+    assert (r.status != UNDECIDED).all()
+    assert 4 <= np.count_nonzero(r.status == CONTACT) <= n - 4  # both kinds are exercised
+    for i in range(n):
+        # b stays within 0.8 rad of up, so its contact witnesses lie within S / sigma of its end face
+        # (sigma = 1: the axes face each other), S at most s_max over the motion
+        s_max = 2.0 + 0.7 + np.linalg.norm(pos_b[i]) + np.linalg.norm(vel[i]) * horizon + 0.1
+        bound = 1.5 * (np.linalg.norm(vel[i]) + np.linalg.norm(w[i]) * (0.7 + s_max))
+        args = (col, np.zeros(3), DOWN, pos_b[i], rot_b[i], vel[i], w[i], horizon)
+        touch = reference_first(*args, 0.0, bound)
+        tol = col.distance(np.zeros(3), DOWN, pos_b[i], rot_b[i]).tol[0]
+        near = reference_first(*args, tol, bound)
+        if r.status[i] == CLEAR:
+            assert touch is None, (i, touch)
+        else:
+            assert near is not None and near - 1e-8 <= r.time[i], (i, near, r.time[i])
+            assert touch is None or r.time[i] <= touch + 1e-8, (i, touch, r.time[i])
+    hit = r.status == CONTACT
+    again = col.distance(np.zeros(3), DOWN, r.pos_b[hit], r.rot_b[hit])
+    assert (again.distance <= again.tol).all()  # a reported contact is one
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 2**32 - 1), n_a=st.integers(3, 40), n_b=st.integers(3, 40))
+def test_free_poses_no_sampled_contact_before_the_time_and_touching_at_it(seed, n_a, n_b):
+    # Any poses (the axes need not face each other) and fast turns: the samples before the reported
+    # time never touch, and b's pose at it does (per distance).
+    rng = np.random.default_rng(seed)
+    a, b = pb.Prism.regular(n_a, rng.uniform(0.5, 2)), pb.Prism.regular(n_b, rng.uniform(0.5, 2))
+    pos_b = rng.uniform(-4, 4, 3)
+    rot_b = rodrigues(rng.normal(size=3), rng.uniform(0, math.pi))
+    rot_a = rodrigues(rng.normal(size=3), rng.uniform(0, math.pi))
+    vel, w = rng.normal(size=3) * 4, rng.normal(size=3) * 2
+    col = pb.Collider(a, b)
+    r = col.time_of_impact([0, 0, 0], rot_a, pos_b, rot_b, vel, w, horizon=2.0, pose=True)
+    end = 2.0 if r.status[0] == CLEAR else r.time[0]
+    ts = np.linspace(0.0, end, 101)[: 101 if r.status[0] == CLEAR else 100]
+    P = pos_b + np.outer(ts, vel)
+    R = np.array([rodrigues(w, t) @ rot_b for t in ts])
+    before = col.distance([0, 0, 0], rot_a, P, R, parallel=False)
+    assert (before.distance > 0).all() or r.time[0] == 0.0
+    if r.status[0] == CONTACT:
+        at = col.distance([0, 0, 0], rot_a, r.pos_b, r.rot_b)
+        assert at.distance[0] <= at.tol[0]
+
+
+def test_pose_at_time_and_serial_equals_parallel():
+    rng = np.random.default_rng(7)
+    b = pb.Prism.regular(36, 0.7)
+    n = 300
+    pos_b, rot_b, vel, w = random_motions(rng, n, 0.7)
+    col = pb.Collider(pb.Prism.regular(5, 2.0), b)
+    kw = dict(horizon=2.0, pose=True, contact=True)
+    rs = col.time_of_impact([0, 0, 0], DOWN, pos_b, rot_b, vel, w, parallel=False, **kw)
+    rp = col.time_of_impact([0, 0, 0], DOWN, pos_b, rot_b, vel, w, parallel=True, **kw)
+    for x, y in ((rs.time, rp.time), (rs.status, rp.status), (rs.pos_b, rp.pos_b), (rs.contact, rp.contact)):
+        np.testing.assert_array_equal(x, y)
+    hit = rs.status == CONTACT
+    t = rs.time[hit]
+    np.testing.assert_allclose(rs.pos_b[hit], pos_b[hit] + vel[hit] * t[:, None], rtol=0, atol=1e-12)
+    R = np.array([rodrigues(wi, ti) @ Ri for wi, ti, Ri in zip(w[hit], t, rot_b[hit])])
+    np.testing.assert_allclose(rs.rot_b[hit], R, rtol=0, atol=1e-12)
+    # the contact is the midpoint of the witnesses at that time (pairs that start inside: half the depth)
+    again = col.distance([0, 0, 0], DOWN, rs.pos_b[hit], rs.rot_b[hit], witness=True)
+    assert np.all(np.linalg.norm(rs.contact[hit] - again.point_a, axis=1) <= 0.5 * abs(again.distance) + again.tol)
+    assert np.isnan(rs.contact[~hit]).all()
+    assert len(rs[hit]) == hit.sum() and set(rs.columns()) >= {"time", "status", "pos_b_x", "rot_b_22", "contact_z"}
+
+
+def test_iteration_cap_is_reported_not_a_contact():
+    # Turning towards a's own direction needs ever smaller steps: with a cap of 3 the pair is undecided.
+    b = pb.Prism.regular(4, 0.5)
+    r = time_of_impact(SQUARE, b, [0, 0, 0], DOWN, [5.0, 0, 0.5], np.eye(3), [0, 0, 0], [0, 2.0, 0],
+                       horizon=10.0, max_iter=3, contact=True)  # fmt: skip
+    assert r.status[0] == UNDECIDED and r.iterations[0] == 3 and 0 < r.time[0] < 10 and np.isnan(r.contact[0]).all()
+    assert not r.hit[0]
+
+
+def test_bad_input():
+    b = pb.Prism.regular(4, 0.5)
+    call = lambda **kw: time_of_impact(SQUARE, b, [0, 0, 0], DOWN, [0, 0, 1.0], np.eye(3), **kw)
+    with pytest.raises(TypeError, match="velocity"):
+        call(horizon=1.0)
+    with pytest.raises(ValueError, match="velocity"):
+        call(velocity=[1.0, 2.0], horizon=1.0)
+    with pytest.raises(ValueError, match=r"velocity\[1\]"):
+        call(velocity=[[0, 0, 1.0], [0, np.nan, 0]], horizon=1.0)
+    with pytest.raises(TypeError, match="angular_velocity"):
+        call(velocity=[0, 0, 1.0], angular_velocity="fast", horizon=1.0)
+    with pytest.raises(ValueError, match="angular_velocity"):
+        call(velocity=[0, 0, 1.0], angular_velocity=[0, 0, np.inf], horizon=1.0)
+    for h in (0.0, -1.0, np.inf, np.nan):
+        with pytest.raises(ValueError, match="horizon"):
+            call(velocity=[0, 0, 1.0], horizon=h)
+    with pytest.raises(TypeError, match="horizon"):
+        call(velocity=[0, 0, 1.0], horizon="1")
+    with pytest.raises(ValueError, match="batch sizes"):
+        call(velocity=np.zeros((3, 3)), angular_velocity=np.zeros((2, 3)), horizon=1.0)
+    with pytest.raises(TypeError, match="max_iter"):
+        call(velocity=[0, 0, 1.0], horizon=1.0, max_iter=2.5)
+    with pytest.raises(ValueError, match="max_iter"):
+        call(velocity=[0, 0, 1.0], horizon=1.0, max_iter=0)
+    with pytest.raises(TypeError, match="pose"):
+        call(velocity=[0, 0, 1.0], horizon=1.0, pose="yes")
+    with pytest.raises(ValueError, match="rot_b"):
+        time_of_impact(SQUARE, b, [0, 0, 0], DOWN, [0, 0, 1.0], 2 * np.eye(3), [0, 0, 1.0], horizon=1.0)
+
+
+def test_motion_widens_a_single_pose_and_horizons_per_pair():
+    b = pb.Prism.regular(4, 0.5)
+    vel = [[0, 0, -1.0], [0, 0, -2.0], [0, 0, 1.0]]
+    r = time_of_impact(SQUARE, b, [0, 0, 0], DOWN, [0, 0, 1.0], np.eye(3), vel, horizon=[2.0, 0.4, 2.0])
+    assert r.status.tolist() == [CONTACT, CLEAR, CLEAR]
+    assert abs(r.time[0] - 1.0) < 1e-8
