@@ -21,6 +21,7 @@ from .poses import (
     rotation_message,
     transforms_as_written,
 )
+from .results import BatchResult
 from .shapes import as_prism_set
 
 __all__ = ["collide", "Collider", "CollisionResult", "PairResult", "CASES", "DEFAULT_RTOL", "pair_scale_tolerance"]
@@ -65,7 +66,7 @@ def pair_scale_tolerance(shape_a, shape_b, pos_a, rot_a, pos_b, rot_b, *, rtol=N
 
 
 @dataclass(frozen=True)
-class CollisionResult:
+class CollisionResult(BatchResult):
     """Result of :func:`collide` for ``N`` pose pairs.
 
     Attributes
@@ -93,19 +94,6 @@ class CollisionResult:
         if self._contact is None:
             raise AttributeError("contact points were not computed: call collide(..., contact=True)")
         return self._contact
-
-    def __len__(self):
-        return self.hit.shape[0]
-
-    def __getitem__(self, k):
-        """The result of some pairs: an index, a slice, an index array or a boolean mask
-        (an integer keeps a batch of one, like ``result[k:k + 1]``)."""
-        if isinstance(k, (int, np.integer)):
-            n = len(self)
-            if not -n <= k < n:
-                raise IndexError(f"pair {k} is out of range for {n} pairs")
-            k = slice(k, k + 1 if k != -1 else None)
-        return CollisionResult(self.hit[k], self.case[k], None if self._contact is None else self._contact[k])
 
     def __repr__(self):
         n = len(self)

@@ -29,6 +29,7 @@ from ._kernels.distance import (
 )
 from ._kernels.jit import first_call
 from .collide import Collider
+from .results import BatchResult
 
 __all__ = ["distance", "signed_distance", "DistanceResult", "STATUS", "SOLVERS", "SEPARATED", "TOUCHING", "PENETRATING"]
 
@@ -51,7 +52,7 @@ SOLVERS = {
 
 
 @dataclass(frozen=True)
-class DistanceResult:
+class DistanceResult(BatchResult):
     """Result of :func:`distance` for ``N`` pose pairs.
 
     Attributes
@@ -98,28 +99,6 @@ class DistanceResult:
     def point_b(self) -> np.ndarray:
         """(N, 3) the matching point on b's boundary, ``point_a + distance * normal`` (``witness=True``)."""
         return self._witness("point_b")
-
-    def __len__(self):
-        return self.distance.shape[0]
-
-    def __getitem__(self, k):
-        """The result of some pairs (an index, a slice, an index array or a boolean mask;
-        an integer keeps a batch of one)."""
-        if isinstance(k, (int, np.integer)):
-            n = len(self)
-            if not -n <= k < n:
-                raise IndexError(f"pair {k} is out of range for {n} pairs")
-            k = slice(k, k + 1 if k != -1 else None)
-        pick = lambda x: None if x is None else x[k]
-        return DistanceResult(
-            self.distance[k],
-            self.status[k],
-            self.tol[k],
-            self.solver[k],
-            pick(self._normal),
-            pick(self._point_a),
-            pick(self._point_b),
-        )
 
     def __repr__(self):
         n = len(self)

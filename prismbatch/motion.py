@@ -29,6 +29,7 @@ from ._kernels.batch import use_parallel
 from ._kernels.jit import first_call
 from ._kernels.motion import CLEAR, CONTACT, UNDECIDED, toi_parallel, toi_serial
 from .collide import Collider
+from .results import BatchResult
 
 __all__ = ["time_of_impact", "impact_times", "TimeOfImpactResult", "STATUS", "CONTACT", "CLEAR", "UNDECIDED"]
 
@@ -44,7 +45,7 @@ STATUS = {
 
 
 @dataclass(frozen=True)
-class TimeOfImpactResult:
+class TimeOfImpactResult(BatchResult):
     """Result of :func:`time_of_impact` for ``N`` pairs.
 
     Attributes
@@ -98,28 +99,6 @@ class TimeOfImpactResult:
         """(N, 3) the contact at ``time``: the midpoint of the witness points of
         :func:`~prismbatch.distance`; NaN rows unless CONTACT (``contact=True``)."""
         return self._extra("contact", "contact")
-
-    def __len__(self):
-        return self.time.shape[0]
-
-    def __getitem__(self, k):
-        """The result of some pairs (an index, a slice, an index array or a boolean mask;
-        an integer keeps a batch of one)."""
-        if isinstance(k, (int, np.integer)):
-            n = len(self)
-            if not -n <= k < n:
-                raise IndexError(f"pair {k} is out of range for {n} pairs")
-            k = slice(k, k + 1 if k != -1 else None)
-        pick = lambda x: None if x is None else x[k]
-        return TimeOfImpactResult(
-            self.time[k],
-            self.status[k],
-            self.iterations[k],
-            self.distance[k],
-            pick(self._pos_b),
-            pick(self._rot_b),
-            pick(self._contact),
-        )
 
     def __repr__(self):
         n = len(self)

@@ -55,6 +55,7 @@ import numpy as np
 from ._kernels.batch import use_parallel
 from ._kernels.probability import sample_parallel, sample_serial
 from .poses import as_pose, as_real_array, broadcast_poses, check_flag, real_scalar
+from .results import BatchResult
 from .shapes import Prism
 
 __all__ = ["collision_probability", "ProbabilityResult", "METHODS", "EXACT", "PLAIN", "IMPORTANCE", "wilson"]
@@ -98,7 +99,7 @@ _METHOD_NAMES = ("auto", "plain", "importance")
 
 
 @dataclass(frozen=True)
-class ProbabilityResult:
+class ProbabilityResult(BatchResult):
     """Result of :func:`collision_probability` for ``N`` queries.
 
     Attributes
@@ -136,9 +137,6 @@ class ProbabilityResult:
     seed: int
     confidence: float
     rel_error: float
-
-    def __len__(self):
-        return self.p.shape[0]
 
     def __repr__(self):
         n = len(self)

@@ -1,6 +1,8 @@
 """The pose and polygon forms users write: two 4x4 transforms, scipy Rotations and quaternions on the
 one-pair path, closed rings; and the result as users handle it (repr, indexing, columns)."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -98,3 +100,31 @@ def test_result_repr_indexing_and_columns():
     assert np.array_equal(cols["contact_z"], r.contact[:, 2], equal_nan=True)
     assert list(pb.collide(A, B, np.zeros(3), DOWN, pos_b, np.eye(3)).columns()) == ["hit", "case"]
     assert "1 pair, " in repr(r[0])
+
+
+def test_every_result_is_indexed_the_same_way():
+    """Collision, distance, time-of-impact and probability results cut every per-pair array alike
+    and keep their scalars (prismbatch.results.BatchResult)."""
+    z = np.array([-1.0, -0.1, 0.3, 1.0])
+    pos_b = np.column_stack([np.zeros(4), np.zeros(4), z])
+    cov = np.diag([0.0, 0.0, 0.1**2, 0.0, 0.0, 0.0])
+    results = [
+        pb.collide(A, B, np.zeros(3), DOWN, pos_b, np.eye(3), contact=True),
+        pb.distance(A, B, np.zeros(3), DOWN, pos_b, np.eye(3), witness=True),
+        pb.time_of_impact(A, B, np.zeros(3), DOWN, pos_b, np.eye(3), [0, 0, -1.0], horizon=1.0, pose=True),
+        pb.collision_probability(A, B, np.zeros(3), DOWN, pos_b, np.eye(3), cov, seed=2, max_samples=4096),
+    ]
+    mask = np.array([True, False, True, True])
+    for r in results:
+        assert len(r) == 4
+        for k, rows in ((2, [2]), (-1, [3]), (slice(1, 3), [1, 2]), (mask, [0, 2, 3]), (np.array([3, 0]), [3, 0])):
+            part = r[k]
+            assert type(part) is type(r) and len(part) == len(rows)
+            for f in dataclasses.fields(r):
+                v, w = getattr(r, f.name), getattr(part, f.name)
+                if isinstance(v, np.ndarray):
+                    np.testing.assert_array_equal(w, v[rows], err_msg=f.name)
+                else:
+                    assert w is v or w == v, f.name  # scalars (seed, confidence) and None kept
+        with pytest.raises(IndexError):
+            r[4]
