@@ -210,11 +210,20 @@ class Collider:
 
     def distance(self, pos_a, rot_a=None, pos_b=None, rot_b=None, *, witness=False, quat_order=None, parallel=None):
         """Signed distance of the pose pairs; see :func:`prismbatch.distance` for the arguments."""
-        from .distance import signed_distance  # distance builds on this module
+        from .distance import one_pair_distance, signed_distance  # distance builds on this module
 
         pos_a, rot_a, pos_b, rot_b = _as_written("distance", pos_a, rot_a, pos_b, rot_b)
         check_flag(witness, "witness")
         check_flag(parallel, "parallel", allow_none=True)
+        if self._is_single_pair(pos_a, rot_a, pos_b, rot_b, quat_order):
+            # One plain pair: checks and set-up in one compiled call (a controller's query).
+            pair = tuple(
+                x if x.flags.c_contiguous and x.flags.writeable else x.copy() for x in (pos_a, rot_a, pos_b, rot_b)
+            )
+            problem, val, res = one_pair_distance(self._shape_args, pair, self._pair_scalars, self.dtype, witness)
+            if problem:
+                raise ValueError(_pair_problem(problem, val, self._pair_scalars[3], self._max_magnitude))
+            return res
         poses = self._batch_poses(pos_a, rot_a, pos_b, rot_b, quat_order)
         return signed_distance(
             self._a,

@@ -27,6 +27,7 @@ from ._kernels.distance import (
     distance_parallel,
     distance_serial,
 )
+from ._kernels.distance_pair import distance_pair
 from ._kernels.jit import first_call
 from .collide import Collider
 from .results import BatchResult
@@ -176,6 +177,37 @@ def distance(
     """
     col = Collider(shape_a, shape_b, rtol=rtol, atol=atol, dtype=dtype)  # checks and packs the shapes once
     return col.distance(pos_a, rot_a, pos_b, rot_b, witness=witness, quat_order=quat_order, parallel=parallel)
+
+
+def one_pair_distance(shape_args, pair, scalars, dtype, witness):
+    """:func:`distance` of one pair whose poses are C-contiguous (3,) and (3, 3) arrays of ``dtype``.
+
+    Parameters
+    ----------
+    shape_args : tuple
+        ``(a.floats, a.ints, b.floats, b.ints)`` of the packed single prisms.
+    pair : tuple of numpy.ndarray
+        ``(pos_a, rot_a, pos_b, rot_b)``, checked in the kernel.
+    scalars : tuple
+        ``(rtol, atol, eps, ortho_tol_a, ortho_tol_b, max_magnitude)``, as ``collide_pair`` takes them.
+    dtype : numpy.dtype
+    witness : bool
+
+    Returns
+    -------
+    tuple
+        ``(problem, value, result)``: problem 0 and the :class:`DistanceResult`
+        of one pair, or the code and offending value of the first bad input
+        (as ``collide_pair``'s) and None.
+    """
+    kern = distance_pair[np.dtype(dtype)]
+    problem, val, d, t, status, code, n, p, q = first_call(kern, kern, *shape_args, *pair, *scalars, bool(witness))
+    if problem:
+        return problem, val, None
+    head = (np.array([d]), np.array([status], np.int8), np.array([t]), np.array([code], np.int8))
+    if not witness:
+        return 0, 0.0, DistanceResult(*head)
+    return 0, 0.0, DistanceResult(*head, np.array([n]), np.array([p]), np.array([q]))
 
 
 def signed_distance(a_arrays, b_arrays, n, pos_a, rot_a, pos_b, rot_b, *, rtol, atol, dtype, witness, parallel):

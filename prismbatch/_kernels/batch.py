@@ -390,6 +390,24 @@ def run(a_arrays, b_arrays, pos_a, rot_a, pos_b, rot_b, n, rtol, atol, want_cont
 PAIR_SHAPE_PROBLEM = 9
 
 
+@jit(inline="always")
+def pair_problem(Pa, Ra, Pb, Rb, ortho_tol_a, ortho_tol_b, max_magnitude):
+    """(problem, value) of one pair's poses, checked in the kernel: 0 if valid, else the first bad
+    input (1-4 for a, 5-8 for b, :data:`PAIR_SHAPE_PROBLEM`; see collide._pair_problem)."""
+    # Shapes are checked here, not by the caller: a (2,) position would be read out of bounds.
+    if Pa.shape[0] != 3 or Pb.shape[0] != 3 or Ra.shape != (3, 3) or Rb.shape != (3, 3):
+        return PAIR_SHAPE_PROBLEM, 0.0
+    for k, P in enumerate((Pa, Pb)):
+        for j in range(3):
+            if not abs(P[j]) <= max_magnitude:  # also NaN
+                return 1 + 4 * k, np.float64(P[j])
+    for k, (R, ortho_tol) in enumerate(((Ra, ortho_tol_a), (Rb, ortho_tol_b))):
+        _, kind, val = first_bad_rotation(R.reshape((1, 3, 3)), ortho_tol)
+        if kind != 0:
+            return 1 + kind + 4 * k, np.float64(val)
+    return 0, 0.0
+
+
 def _collide_pair(
     a_floats,
     a_ints,
@@ -413,17 +431,9 @@ def _collide_pair(
     collide._pair_problem) and ``value`` gives the offending number.
     """
     nan = math.nan
-    # Shapes are checked here, not by the caller: a (2,) position would be read out of bounds.
-    if Pa.shape[0] != 3 or Pb.shape[0] != 3 or Ra.shape != (3, 3) or Rb.shape != (3, 3):
-        return PAIR_SHAPE_PROBLEM, 0.0, False, 0, nan, nan, nan
-    for k, P in enumerate((Pa, Pb)):
-        for j in range(3):
-            if not abs(P[j]) <= max_magnitude:  # also NaN
-                return 1 + 4 * k, P[j], False, 0, nan, nan, nan
-    for k, (R, ortho_tol) in enumerate(((Ra, ortho_tol_a), (Rb, ortho_tol_b))):
-        _, kind, val = first_bad_rotation(R.reshape((1, 3, 3)), ortho_tol)
-        if kind != 0:
-            return 1 + kind + 4 * k, val, False, 0, nan, nan, nan
+    problem, val = pair_problem(Pa, Ra, Pb, Rb, ortho_tol_a, ortho_tol_b, max_magnitude)
+    if problem:
+        return problem, val, False, 0, nan, nan, nan
     avx, avy, aeang, aetab, avang, ainv, aoff, arad, acen = unpack(a_floats, a_ints)
     bvx, bvy, beang, betab, _, _, boff, brad, bcen = unpack(b_floats, b_ints)
     hit, case, cx, cy, cz = pair_world(

@@ -590,6 +590,12 @@ def pair_distance(P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, rtol, atol, eps, witnes
     return dist, tol, code, (nx, ny, nz), (px, py, pz)
 
 
+@jit(inline="always")
+def signed_status(d, tol):
+    """SEPARATED, TOUCHING (``|d| <= tol``) or PENETRATING."""
+    return TOUCHING if abs(d) <= tol else (SEPARATED if d > tol else PENETRATING)
+
+
 def _distance_loop(a_floats, a_ints, b_floats, b_ints, poses, rtol, atol, eps, witness, out, wit):
     """Every pair of a batch; ``poses``: (pos_a, rot_a, pos_b, rot_b), each of N or 1 rows;
     ``out``: (distance, status, tol, solver), N each; ``wit``: (normal, point_a, point_b), N x 3 or 0 x 3."""
@@ -614,7 +620,7 @@ def _distance_loop(a_floats, a_ints, b_floats, b_ints, poses, rtol, atol, eps, w
         )
         dist_out[i] = d
         tol_out[i] = t
-        status_out[i] = TOUCHING if abs(d) <= t else (SEPARATED if d > t else PENETRATING)
+        status_out[i] = signed_status(d, t)
         solver_out[i] = code
         if witness:
             for c in range(3):

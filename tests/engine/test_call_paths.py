@@ -116,3 +116,34 @@ def test_near_touching_pairs_with_a_known_gap(name, seed):
             assert r.hit[k], (name, k, ps.target[k])
         elif gap > 2 * tol[0] + slack:
             assert not r.hit[k], (name, k, ps.target[k])
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_one_pair_distance_equals_the_batch(dtype):
+    """Collider.distance on one plain pair (the compiled one-pair path, checks in the kernel) gives
+    the batch path's answer to the bit, and the batch path's error messages."""
+    from prismbatch.sampling import facing_poses, free_poses
+
+    rng = np.random.default_rng(11)
+    col = pb.Collider(pb.Prism.regular(36, 1.0), pb.Prism.regular(7, 0.6), dtype=dtype)
+    for poses in (facing_poses(60, rng, radius=1.0), free_poses(60, rng, radius=1.0)):
+        P = [np.asarray(x, dtype=dtype) for x in poses]
+        for i in range(60):
+            for witness in (False, True):
+                one = col.distance(*(np.ascontiguousarray(x[i]) for x in P), witness=witness)
+                batch = col.distance(*(x[i : i + 1] for x in P), witness=witness)
+                for name, v in batch.columns().items():
+                    np.testing.assert_array_equal(one.columns()[name], v, err_msg=name)
+    pa, ra, pb_, rb = (np.asarray(x, dtype=dtype) for x in (np.zeros(3), np.eye(3), [0, 0, 1.0], np.eye(3)))
+    for bad, k, name, what in (
+        (np.array([np.nan, 0, 0], dtype=dtype), 2, "pos_b", "non-finite"),
+        (2 * ra, 1, "rot_a", "orthonormal"),
+    ):
+        args = [pa, ra, pb_, rb]
+        args[k] = bad
+        for call in (lambda: col.distance(*args), lambda: col.distance(*(x[None] for x in args))):
+            with pytest.raises(ValueError, match=what) as err:
+                call()
+            assert str(err.value).startswith(name)  # the batch adds the index: pos_b[0]
+    strided = np.zeros((3, 2), dtype=dtype)[:, 0]  # not contiguous: copied, same answer
+    assert col.distance(strided, ra, pb_, rb).distance[0] == col.distance(pa, ra, pb_, rb).distance[0]
