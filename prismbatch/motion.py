@@ -13,8 +13,8 @@ advances by d / V, V a proven bound on how fast any point of b that can take
 part in a first contact approaches a. b is semi-infinite, so its points far
 along the axis move without bound when the axis turns; only the part of b
 within S / sigma of its end face along the axis can make the first contact
-(S = R_a + R_b + |c_b - c_a|, sigma = 1 when the axes face each other and
-|d_a x d_b| when they point the same way), which bounds V. No step can jump
+(``S = R_a + R_b + |c_b - c_a|``, sigma = 1 when the axes face each other and
+``|d_a x d_b|`` when they point the same way), which bounds V. No step can jump
 over a contact, however fast the motion. The method and its proof are in
 ``docs/methods/time-of-impact.md`` and :mod:`prismbatch._kernels.motion`.
 """
@@ -171,10 +171,10 @@ def time_of_impact(
     tau with tau V <= d - m, m the distance's error bound (0.1 tol) and V a
     proven bound, over the whole step, on how fast the part of b that can make
     the first contact approaches a along the exact normal:
-    V = |v| cos(max(0, angle(-v, n) - phi)) + |w| rho_b + |w x d_b| beta, with
+    ``V = |v| cos(max(0, angle(-v, n) - phi)) + |w| rho_b + |w x d_b| beta``, with
     phi the normal's error, rho_b the reach of b's end face from p_b and beta
     the reach along b's axis of any contact point: at most S / sigma (S the pair
-    scale, sigma = 1 while the axes face each other, else |d_a x d_b|) and,
+    scale, sigma = 1 while the axes face each other, else ``|d_a x d_b|``) and,
     while they face each other, ((c_b - c_a).d_a + R_b) / (-d_a.d_b), both at
     their worst over the step. No step passes a contact, however fast the motion.
 
