@@ -24,7 +24,16 @@ from .poses import (
 from .results import BatchResult
 from .shapes import as_prism_set
 
-__all__ = ["collide", "Collider", "CollisionResult", "PairResult", "CASES", "DEFAULT_RTOL", "pair_scale_tolerance"]
+__all__ = [
+    "collide",
+    "Collider",
+    "CollisionResult",
+    "PairResult",
+    "CASES",
+    "DEFAULT_RTOL",
+    "pair_scale_tolerance",
+    "collider_for",
+]
 
 #: Default relative tolerance per dtype. The absolute tolerance of a pair is
 #: ``atol + rtol * (R_a + R_b + |c_b - c_a|) + 4 eps (|c_a| + |c_b|)`` (bounding
@@ -217,9 +226,7 @@ class Collider:
         check_flag(parallel, "parallel", allow_none=True)
         if self._is_single_pair(pos_a, rot_a, pos_b, rot_b, quat_order):
             # One plain pair: checks and set-up in one compiled call (a controller's query).
-            pair = tuple(
-                x if x.flags.c_contiguous and x.flags.writeable else x.copy() for x in (pos_a, rot_a, pos_b, rot_b)
-            )
+            pair = tuple(_kernel_array(x, x.shape, self.dtype) for x in (pos_a, rot_a, pos_b, rot_b))
             problem, val, res = one_pair_distance(self._shape_args, pair, self._pair_scalars, self.dtype, witness)
             if problem:
                 raise ValueError(_pair_problem(problem, val, self._pair_scalars[3], self._max_magnitude))
@@ -558,7 +565,7 @@ def collide(
     >>> pb.collide(a, b, [0, 0, 0], down, [[0, 0, 1.0], [0, 0, 0.5]], np.eye(3), margin=0.75).hit.tolist()
     [False, True]
     """
-    col = _collider(shape_a, shape_b, rtol, atol, dtype)
+    col = collider_for(shape_a, shape_b, rtol, atol, dtype)
     return col.collide(
         pos_a, rot_a, pos_b, rot_b, contact=contact, margin=margin, quat_order=quat_order, parallel=parallel
     )
@@ -567,9 +574,10 @@ def collide(
 _recent = {}  # key -> (a, b, Collider); the shapes are kept alive so their ids stay theirs
 
 
-def _collider(shape_a, shape_b, rtol, atol, dtype):
-    """The Collider of :func:`collide`: the last few are kept, as a loop calling ``collide``
-    on the same shapes would otherwise rebuild and recheck them every call."""
+def collider_for(shape_a, shape_b, rtol, atol, dtype):
+    """The Collider behind the module-level queries (:func:`collide`, ``distance``,
+    ``time_of_impact``, ``collision_probability``): the last few are kept, as a loop
+    calling them on the same shapes would otherwise rebuild and recheck them every call."""
     try:
         key = (id(shape_a), id(shape_b), type(rtol), rtol, type(atol), atol, np.dtype(dtype))
         hash(key)

@@ -29,7 +29,7 @@ from ._kernels.distance import (
 )
 from ._kernels.distance_pair import distance_pair
 from ._kernels.jit import first_call
-from .collide import Collider
+from .collide import collider_for
 from .results import BatchResult
 
 __all__ = ["distance", "signed_distance", "DistanceResult", "STATUS", "SOLVERS", "SEPARATED", "TOUCHING", "PENETRATING"]
@@ -175,7 +175,7 @@ def distance(
     >>> r.distance.round(12).tolist(), r.status.tolist()
     ([0.5, -0.25], [1, -1])
     """
-    col = Collider(shape_a, shape_b, rtol=rtol, atol=atol, dtype=dtype)  # checks and packs the shapes once
+    col = collider_for(shape_a, shape_b, rtol, atol, dtype)  # checks and packs the shapes (kept for repeat calls)
     return col.distance(pos_a, rot_a, pos_b, rot_b, witness=witness, quat_order=quat_order, parallel=parallel)
 
 

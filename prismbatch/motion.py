@@ -28,7 +28,7 @@ import numpy as np
 from ._kernels.batch import use_parallel
 from ._kernels.jit import first_call
 from ._kernels.motion import CLEAR, CONTACT, UNDECIDED, toi_parallel, toi_serial
-from .collide import Collider
+from .collide import collider_for
 from .results import BatchResult
 
 __all__ = ["time_of_impact", "impact_times", "TimeOfImpactResult", "STATUS", "CONTACT", "CLEAR", "UNDECIDED"]
@@ -202,7 +202,7 @@ def time_of_impact(
     >>> float(r.time[0].round(6)), r.status.tolist()
     (0.5, [1])
     """
-    col = Collider(shape_a, shape_b, rtol=rtol, atol=atol, dtype=dtype)
+    col = collider_for(shape_a, shape_b, rtol, atol, dtype)  # checks and packs the shapes (kept for repeat calls)
     return col.time_of_impact(
         pos_a,
         rot_a,

@@ -233,9 +233,9 @@ def collision_probability(
     >>> bool(abs(r.p[0] - 0.02275) < 0.003), r.method.tolist()  # Phi(-2)
     (True, [2])
     """
-    from .collide import Collider
+    from .collide import collider_for
 
-    col = Collider(shape_a, shape_b, rtol=rtol, atol=atol, dtype=dtype)
+    col = collider_for(shape_a, shape_b, rtol, atol, dtype)  # checks and packs the shapes (kept for repeat calls)
     return col.collision_probability(
         pos_a,
         rot_a,

@@ -238,10 +238,9 @@ def predict_command(args):
     summary = {"queries": source}
     print(f"prismbatch predict: {source}")
     if toi is not None:
-        hit = np.isfinite(toi.time) & toi.hit
         summary["time_of_impact"] = {
             "queries": len(toi),
-            "contact": int(hit.sum()),
+            "contact": int(toi.hit.sum()),
             "clear": int(np.count_nonzero(toi.status == 0)),
             "undecided": int(np.count_nonzero(toi.status == -1)),
             "median_iterations": float(np.median(toi.iterations)),

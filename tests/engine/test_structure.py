@@ -93,8 +93,12 @@ def test_collide_reuses_its_collider_only_for_the_same_shapes_and_tolerances():
         tight = pb.collide(a, b, np.zeros(3), down, p, np.eye(3), rtol=1e-9)
         loose = pb.collide(a, b, np.zeros(3), down, p, np.eye(3), rtol=1e-6)
     assert tight.hit.tolist() == [False] and loose.hit.tolist() == [True]
-    assert collide_module._collider(a, b, 1e-6, 0.0, np.float64) is collide_module._collider(a, b, 1e-6, 0.0, "f8")
-    assert collide_module._collider(a, b, 1e-6, 0.0, np.float64) is not collide_module._collider(b, a, 1e-6, 0.0, "f8")
+    assert collide_module.collider_for(a, b, 1e-6, 0.0, np.float64) is collide_module.collider_for(
+        a, b, 1e-6, 0.0, "f8"
+    )
+    assert collide_module.collider_for(a, b, 1e-6, 0.0, np.float64) is not collide_module.collider_for(
+        b, a, 1e-6, 0.0, "f8"
+    )
     with pytest.raises(TypeError):
         pb.collide(a, b, np.zeros(3), down, p, np.eye(3), rtol=True)
 
