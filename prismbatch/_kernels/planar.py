@@ -92,6 +92,13 @@ def edge_search_tables(ex, ey, out_ang, out_tab):
         out_tab[b] = j
 
 
+@jit
+def edge_search_tables_each(ex, ey, out_ang, out_tab):
+    """:func:`edge_search_tables` of each row of ``(m, n)`` arrays (m polygons of n vertices)."""
+    for k in range(ex.shape[0]):
+        edge_search_tables(ex[k], ey[k], out_ang[k], out_tab[k])
+
+
 @jit(inline="always")
 def extreme_vertex(vx, vy, eang, etab, s, n, dx, dy):
     """Local index of a vertex maximising ``(dx, dy) . v``.
