@@ -204,6 +204,14 @@ def _experiment_parser(sub):
         "collide: collide's contact point, inside both bodies for deep contacts, as the paper (default: distance)",
     )
     p.add_argument(
+        "--detach-clearance",
+        type=float,
+        default=None,
+        metavar="UM",
+        help="adapt the detach gain at each contact to the predicted approach: the smallest push the plant "
+        "model predicts leaves b this far (um) out of contact after the step (default: the fixed gain 10, as the paper)",
+    )
+    p.add_argument(
         "--out",
         default=None,
         metavar="DIR",

@@ -47,6 +47,7 @@ def experiment_command(args):
         damping=args.damping,
         detach_tol=args.detach_tol,
         contact_from=args.contact_from,
+        detach_clearance_um=args.detach_clearance,
         fcl=not args.no_fcl,
     )
     for line in format_summary(res):

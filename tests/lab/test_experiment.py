@@ -193,6 +193,26 @@ def test_alarm_against_sampled_motions(triangle):
         assert abs(hits - 40 * al["p"][j]) <= 1, (triangle.t[k], hits, al["p"][j])  # sampling may miss a graze
 
 
+@pytest.mark.parametrize("plant", ["velocity", "force"])
+def test_adapted_detach_leaves_the_asked_clearance(plant):
+    clearance_um = 40.0
+    r = run_experiment("square", vertices=36, plant=plant, detach_clearance_um=clearance_um, timing=False, alarm=False)
+    g = r.geometry
+    a, b = Prism(g["xy_a"]), Prism(g["xy_b"])
+    hits = np.flatnonzero(r.hit)
+    assert len(hits) >= 2
+    gaps = distance(a, b, g["pos_a"], g["rot_a"], r.dc[hits + 1], g["rot_b"]).distance
+    depth = -distance(a, b, g["pos_a"], g["rot_a"], r.dc[hits], g["rot_b"]).distance
+    moved = np.einsum("ij,ij->i", r.dc[hits + 1] - r.dc[hits], r.direction[hits])
+    # the plant model predicts the step exactly: out of the penetration and the clearance beyond, along the normal
+    np.testing.assert_allclose(moved, np.maximum(depth, 0) + clearance_um * 1e-3, rtol=1e-9)
+    assert np.all(gaps >= clearance_um * 1e-3 * (1 - 1e-9))
+    eps = np.array([e["eps"] for e in r.summary["events"]])
+    assert np.all(eps > 0) and np.ptp(eps) > 0  # adapted per contact, not the fixed 10
+    with pytest.raises(ValueError, match="detach_clearance_um"):
+        run_experiment(vertices=36, detach_clearance_um=-1.0, timing=False)
+
+
 def test_bad_parameters():
     with pytest.raises(ValueError, match="plant"):
         run_experiment(plant="mass", vertices=36, timing=False)

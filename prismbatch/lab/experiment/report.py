@@ -68,7 +68,7 @@ def format_summary(res):
                 f"   t={e['t_s']:.2f} s case {e['case']}, contact class {e['contact_class']} "
                 f"({e['contact_class_name']}), contact ({', '.join(f'{c:.0f}' for c in e['contact_um'])}) µm, "
                 f"detach dir ({', '.join(f'{c:+.3f}' for c in e['direction'])}), "
-                f"|u_d| {1e3 * e['detach_input']:.0f} {unit} "
+                f"|u_d| {1e3 * e['detach_input']:.0f} {unit} (eps {e['eps']:.3g}) "
                 f"(classified within {e['feature_tol_um']:.1f} µm); next sample "
                 + ("collision-free" if e["next_step_collision_free"] else "STILL IN COLLISION")
                 + f", moved {e['moved_out_um']:.0f} µm out"
@@ -264,15 +264,16 @@ def _markdown(res, figure_files):
         "",
         "## Collisions",
         "",
-        f"| t (s) | case | class | contact (µm) | detach direction | detach input ({unit}) | next sample |",
-        "|---|---|---|---|---|---|---|",
+        f"| t (s) | case | class | contact (µm) | detach direction | detach input ({unit}) | ε | moved out (µm) "
+        "| next sample |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for e in s["events"]:
         L.append(
             f"| {e['t_s']:.2f} | {e['case']} | {e['contact_class']} ({e['contact_class_name']}) | "
             f"{', '.join(f'{c:.0f}' for c in e['contact_um'])} | "
-            f"{', '.join(f'{c:+.4f}' for c in e['direction'])} | {1e3 * e['detach_input']:.0f} | "
-            f"{'free' if e['next_step_collision_free'] else 'collision'} |"
+            f"{', '.join(f'{c:+.4f}' for c in e['direction'])} | {1e3 * e['detach_input']:.0f} | {e['eps']:.3g} | "
+            f"{e['moved_out_um']:.1f} | {'free' if e['next_step_collision_free'] else 'collision'} |"
         )
     L += [
         "",
@@ -286,7 +287,13 @@ def _markdown(res, figure_files):
             "mN·s/mm), exact zero-order-hold update."
         ),
         "- PD attraction u = −kp (x − x_d) − kd v, v the finite-difference velocity of the samples; "
-        "detach u_d = ε |x − x_d| c (eq. 42) for the colliding sample only.",
+        "detach u_d = ε |x − x_d| c (eq. 42) for the colliding sample only, "
+        + (
+            f"ε = {p['eps']:g} (the paper's fixed gain)."
+            if p.get("detach_clearance_um") is None
+            else f"ε adapted at each contact to the predicted approach: the smallest push that the plant model "
+            f"predicts leaves b {p['detach_clearance_um']:g} µm out of contact after the step."
+        ),
         "- Contact classification tolerance: "
         + (f"{p['detach_tol_mm']} mm" if not isinstance(p["detach_tol_mm"], str) else p["detach_tol_mm"])
         + ".",

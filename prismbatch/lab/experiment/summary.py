@@ -45,6 +45,7 @@ def summarise(res, tol_used):
                 contact_um=(res.contact[k] / UM).tolist(),
                 direction=res.direction[k].tolist(),
                 detach_input=float(np.linalg.norm(res.u_d[k])),
+                eps=float(np.linalg.norm(res.u_d[k]) / err[k]) if err[k] > 0 else float("nan"),
                 pd_input=float(np.linalg.norm(res.u_pd[k])),
                 error_um=float(err[k] / UM),
                 feature_tol_um=float(tol_used[k] / UM),
