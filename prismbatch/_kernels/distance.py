@@ -32,7 +32,8 @@ from numba import prange
 
 from .batch import centres_world, pair_tolerance, unpack
 from .jit import jit, twins
-from .planar import extreme_vertex
+from .minkowski import cone_box, point_a, support
+from .vec3 import cross, diff, dot, row, sub
 
 SEPARATED, TOUCHING, PENETRATING = 1, 0, -1
 #: C_L's box half-width in units of the pair scale S (see the module docstring).
@@ -57,113 +58,6 @@ SEEN_SLACK = 1e-2
 GJK_GAP, EPA_DEPTH, EPA_STOPPED, FLAT, GJK_STALLED = 0, 1, 2, 3, 4
 
 
-@jit(inline="always")
-def _cross(a, b):
-    return a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]
-
-
-@jit(inline="always")
-def _dot(a, b):
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-
-
-@jit(inline="always")
-def _sub(a, b):
-    return a[0] - b[0], a[1] - b[1], a[2] - b[2]
-
-
-@jit(inline="always")
-def _row(V, i):
-    return V[i, 0], V[i, 1], V[i, 2]
-
-
-@jit(inline="always")
-def _diff(V, i, j):
-    return _sub(_row(V, i), _row(V, j))
-
-
-# --- the support function of D_L = K + C_L ---------------------------------------------------------
-
-
-@jit
-def cone_box(dax, day, daz, ex, ey, ez, s, L):
-    """C_L = cone(d_a, -d_b) ∩ box, as a 22-tuple: ŝ (3), ẑ (3), vertex count, then (s, z, a) per vertex.
-
-    ``d_b = e + s d_a`` with ``s = +-1`` the sign of d_a.d_b; the caller forms
-    ``e`` as an exact difference, so nearly (anti)parallel axes keep the
-    direction of their tilt and identical ones give e = 0. A vertex is the
-    point s ŝ + z ẑ; ``a`` is its part along a's axis (the rest is along -d_b).
-    """
-    n = math.sqrt(dax * dax + day * day + daz * daz)
-    zx, zy, zz = dax / n, day / n, daz / n
-    ep = ex * zx + ey * zy + ez * zz
-    # -d_b across d_a is -(e across d_a): no cancellation between the nearly equal axes.
-    sx, sy, sz = -(ex - ep * zx), -(ey - ep * zy), -(ez - ep * zz)
-    rho = math.sqrt(sx * sx + sy * sy + sz * sz)
-    kap = -ep - s * n  # -d_b along d_a
-    if rho > 0.0:
-        sx, sy, sz = sx / rho, sy / rho, sz / rho
-    o = 0.0
-    if rho == 0.0 and kap > 0.0:  # antiparallel: a ray
-        return sx, sy, sz, zx, zy, zz, 2.0, o, o, o, o, L, L, o, o, o, o, o, o, o, o, o
-    if rho == 0.0:  # parallel: a line
-        return sx, sy, sz, zx, zy, zz, 2.0, o, -L, o, o, L, L, o, o, o, o, o, o, o, o, o
-    r = kap / rho
-    if kap >= rho:  # -d_b climbs steeply: it leaves the box through z = L
-        return sx, sy, sz, zx, zy, zz, 3.0, o, o, o, o, L, L, L / r, L, o, o, o, o, o, o, o
-    if kap >= -rho:  # it leaves through s = L
-        return sx, sy, sz, zx, zy, zz, 4.0, o, o, o, o, L, L, L, L, L - L * r, L, L * r, o, o, o, o
-    return sx, sy, sz, zx, zy, zz, 5.0, o, o, o, o, L, L, L, L, L - L * r, L, -L, -L - L * r, -L / r, -L, o
-
-
-@jit(inline="always")
-def _pt_a(avx, avy, sa, fr, ia):
-    """Vertex ia of F_a (relative to a's centre)."""
-    u = avx[sa + ia]
-    v = avy[sa + ia]
-    return fr[0] * u + fr[3] * v, fr[1] * u + fr[4] * v, fr[2] * u + fr[5] * v
-
-
-@jit(inline="always")
-def support(P, ix, fr, cone, ux, uy, uz):
-    """Support point of D_L in direction u and its pre-image: (x, y, z, ia, ib, kc).
-
-    ``P``: the polygon arrays (vx, vy, edge angles, edge tables of a, then of b); ``ix``:
-    (start, count) of a's and b's polygons; ``fr``: columns 0, 1 of R_a and R_b, then
-    c_b - c_a; ``cone``: :func:`cone_box`. The point is vertex ia of F_a minus
-    vertex ib of F_b plus corner kc of C_L.
-    """
-    avx, avy, aeang, aetab, bvx, bvy, beang, betab = P
-    sa, na, sb, nb = ix
-    ia = extreme_vertex(
-        avx, avy, aeang, aetab, sa, na, fr[0] * ux + fr[1] * uy + fr[2] * uz, fr[3] * ux + fr[4] * uy + fr[5] * uz
-    )
-    bu = fr[6] * ux + fr[7] * uy + fr[8] * uz
-    ib = extreme_vertex(bvx, bvy, beang, betab, sb, nb, -bu, -(fr[9] * ux + fr[10] * uy + fr[11] * uz))
-    us = cone[0] * ux + cone[1] * uy + cone[2] * uz
-    uz_ = cone[3] * ux + cone[4] * uy + cone[5] * uz
-    kc = 0
-    best = -math.inf
-    for k in range(int(cone[6])):
-        val = us * cone[7 + 3 * k] + uz_ * cone[8 + 3 * k]
-        if val > best:
-            best = val
-            kc = k
-    ax, ay, az = _pt_a(avx, avy, sa, fr, ia)
-    u = bvx[sb + ib]
-    v = bvy[sb + ib]
-    cs = cone[7 + 3 * kc]
-    cz = cone[8 + 3 * kc]
-    return (
-        ax - (fr[12] + fr[6] * u + fr[9] * v) + cs * cone[0] + cz * cone[3],
-        ay - (fr[13] + fr[7] * u + fr[10] * v) + cs * cone[1] + cz * cone[4],
-        az - (fr[14] + fr[8] * u + fr[11] * v) + cs * cone[2] + cz * cone[5],
-        ia,
-        ib,
-        kc,
-    )
-
-
 # --- closest point of a simplex to the origin (Ericson's Voronoi-region tests) ------------------------
 
 
@@ -171,27 +65,27 @@ def support(P, ix, fr, cone, ux, uy, uz):
 def _foot(a, e):
     """Foot of the perpendicular from the origin on the line a + t e, as e x (a x e) / |e|^2:
     exact to rounding of the result, where a + t e loses eps |a| when the foot is near the origin."""
-    f = _cross(e, _cross(a, e))
-    ee = _dot(e, e)
+    f = cross(e, cross(a, e))
+    ee = dot(e, e)
     return f[0] / ee, f[1] / ee, f[2] / ee
 
 
 @jit
 def _triangle(W, i, j, k):
     """Closest point of triangle (W[i], W[j], W[k]) to the origin and its three weights (Ericson)."""
-    a, b, c = _row(W, i), _row(W, j), _row(W, k)
-    ab, ac = _sub(b, a), _sub(c, a)
-    d1, d2 = -_dot(ab, a), -_dot(ac, a)
+    a, b, c = row(W, i), row(W, j), row(W, k)
+    ab, ac = sub(b, a), sub(c, a)
+    d1, d2 = -dot(ab, a), -dot(ac, a)
     if d1 <= 0.0 and d2 <= 0.0:
         return a + (1.0, 0.0, 0.0)
-    d3, d4 = -_dot(ab, b), -_dot(ac, b)
+    d3, d4 = -dot(ab, b), -dot(ac, b)
     if d3 >= 0.0 and d4 <= d3:
         return b + (0.0, 1.0, 0.0)
     vc = d1 * d4 - d3 * d2
     if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
         t = d1 / (d1 - d3)
         return _foot(a, ab) + (1.0 - t, t, 0.0)
-    d5, d6 = -_dot(ab, c), -_dot(ac, c)
+    d5, d6 = -dot(ab, c), -dot(ac, c)
     if d6 >= 0.0 and d5 <= d6:
         return c + (0.0, 0.0, 1.0)
     vb = d5 * d2 - d1 * d6
@@ -201,21 +95,21 @@ def _triangle(W, i, j, k):
     va = d3 * d6 - d5 * d4
     if va <= 0.0 and d4 - d3 >= 0.0 and d5 - d6 >= 0.0:
         t = (d4 - d3) / ((d4 - d3) + (d5 - d6))
-        return _foot(b, _sub(c, b)) + (0.0, 1.0 - t, t)
-    n = _cross(ab, ac)
-    nn = _dot(n, n)
+        return _foot(b, sub(c, b)) + (0.0, 1.0 - t, t)
+    n = cross(ab, ac)
+    nn = dot(n, n)
     if not (va + vb + vc > 0.0 and nn > 0.0):  # degenerate (collinear): its nearest vertex
-        da, db, dc = _dot(a, a), _dot(b, b), _dot(c, c)
+        da, db, dc = dot(a, a), dot(b, b), dot(c, c)
         if da <= min(db, dc):
             return a + (1.0, 0.0, 0.0)
         return b + (0.0, 1.0, 0.0) if db <= dc else c + (0.0, 0.0, 1.0)
-    h = _dot(n, a) / nn  # along the normal: exact to rounding of the result
+    h = dot(n, a) / nn  # along the normal: exact to rounding of the result
     p = (h * n[0], h * n[1], h * n[2])
     # Weights from the areas the foot cuts, differences taken at the foot: on a sliver (one far vertex)
     # the dot products above lose them, and the weights must reproduce the foot for the witnesses.
-    wa = _dot(n, _cross(_sub(b, p), _sub(c, p)))
-    wb = _dot(n, _cross(_sub(c, p), _sub(a, p)))
-    wc = _dot(n, _cross(_sub(a, p), _sub(b, p)))
+    wa = dot(n, cross(sub(b, p), sub(c, p)))
+    wb = dot(n, cross(sub(c, p), sub(a, p)))
+    wc = dot(n, cross(sub(a, p), sub(b, p)))
     ws = wa + wb + wc
     if not ws > 0.0:
         den = va + vb + vc
@@ -252,14 +146,14 @@ def closest(W, I, lam, m):
     for j in range(4):
         lam[j] = 0.0
     if m == 1:
-        p = _row(W, 0)
+        p = row(W, 0)
         lam[0] = 1.0
     elif m == 2:
-        a, e = _row(W, 0), _diff(W, 1, 0)
-        ee = _dot(e, e)
-        t = min(max(-_dot(a, e) / ee, 0.0), 1.0) if ee > 0.0 else 0.0
+        a, e = row(W, 0), diff(W, 1, 0)
+        ee = dot(e, e)
+        t = min(max(-dot(a, e) / ee, 0.0), 1.0) if ee > 0.0 else 0.0
         lam[0], lam[1] = 1.0 - t, t
-        p = _row(W, 1) if t == 1.0 else (a if t == 0.0 else _foot(a, e))
+        p = row(W, 1) if t == 1.0 else (a if t == 0.0 else _foot(a, e))
     elif m == 3:
         px, py, pz, lam[0], lam[1], lam[2] = _triangle(W, 0, 1, 2)
         p = (px, py, pz)
@@ -270,8 +164,8 @@ def closest(W, I, lam, m):
         for sweep in range(2):  # the faces the origin is beyond; if none, it is inside: all faces
             for f in range(4):
                 i, j, k, l = _FACES[f]
-                n = _cross(_diff(W, j, i), _diff(W, k, i))
-                if sweep == 1 or -_dot(n, _row(W, i)) * _dot(n, _diff(W, l, i)) <= 0.0:
+                n = cross(diff(W, j, i), diff(W, k, i))
+                if sweep == 1 or -dot(n, row(W, i)) * dot(n, diff(W, l, i)) <= 0.0:
                     inside = sweep == 1
                     qx, qy, qz, li, lj, lk = _triangle(W, i, j, k)
                     if qx * qx + qy * qy + qz * qz < best:
@@ -351,15 +245,15 @@ def gjk(P, ix, fr, cone, ox, oy, oz, acc, loose, W, I, lam):
 @jit
 def _off_hull(V, cnt, p):
     """Distance of p from the affine hull of V[:cnt] (cnt = 1, 2, 3)."""
-    d = _sub(p, _row(V, 0))
+    d = sub(p, row(V, 0))
     if cnt == 1:
-        return math.sqrt(_dot(d, d))
-    e = _diff(V, 1, 0)
+        return math.sqrt(dot(d, d))
+    e = diff(V, 1, 0)
     if cnt == 2:
-        c = _cross(d, e)
-        return math.sqrt(_dot(c, c) / _dot(e, e))
-    n = _cross(e, _diff(V, 2, 0))
-    return abs(_dot(n, d)) / math.sqrt(_dot(n, n))
+        c = cross(d, e)
+        return math.sqrt(dot(c, c) / dot(e, e))
+    n = cross(e, diff(V, 2, 0))
+    return abs(dot(n, d)) / math.sqrt(dot(n, n))
 
 
 @jit
@@ -369,17 +263,17 @@ def _tetrahedron(P, ix, fr, cone, W, I, m, V, VI, tiny):
     (ok, nx, ny, nz): when no point lies more than ``tiny`` off, the hull is flat and n is across it."""
     cnt = 0
     for j in range(m):
-        if cnt == 0 or _off_hull(V, cnt, _row(W, j)) > tiny:
+        if cnt == 0 or _off_hull(V, cnt, row(W, j)) > tiny:
             V[cnt], VI[cnt] = W[j], I[j]
             cnt += 1
     g = (1.0, 0.0, 0.0)
     while cnt < 4:
-        e, f = _diff(V, 1, 0), _diff(V, 2, 0)
+        e, f = diff(V, 1, 0), diff(V, 2, 0)
         if cnt == 2:  # f: a vector across e
             ax = abs(e[0]) <= abs(e[1]) and abs(e[0]) <= abs(e[2])
             f = (0.0, e[2], -e[1]) if ax else ((-e[2], 0.0, e[0]) if abs(e[1]) <= abs(e[2]) else (e[1], -e[0], 0.0))
         if cnt > 1:
-            g = _cross(e, f)
+            g = cross(e, f)
         best = tiny
         for t in range(6 if cnt == 1 else (4 if cnt == 2 else 2)):
             sg = 1.0 if t % 2 == 0 else -1.0
@@ -394,10 +288,10 @@ def _tetrahedron(P, ix, fr, cone, W, I, m, V, VI, tiny):
                 V[cnt, 0], V[cnt, 1], V[cnt, 2] = x, y, z
                 VI[cnt, 0], VI[cnt, 1], VI[cnt, 2] = ia, ib, kc
         if best <= tiny:
-            gn = math.sqrt(_dot(g, g))
+            gn = math.sqrt(dot(g, g))
             return False, g[0] / gn, g[1] / gn, g[2] / gn
         cnt += 1
-    if _dot(_cross(_diff(V, 1, 0), _diff(V, 2, 0)), _diff(V, 3, 0)) < 0.0:  # orient: (1 - 0) x (2 - 0) towards 3
+    if dot(cross(diff(V, 1, 0), diff(V, 2, 0)), diff(V, 3, 0)) < 0.0:  # orient: (1 - 0) x (2 - 0) towards 3
         for c in range(3):
             V[1, c], V[2, c] = V[2, c], V[1, c]
             VI[1, c], VI[2, c] = VI[2, c], VI[1, c]
@@ -408,14 +302,14 @@ def _tetrahedron(P, ix, fr, cone, W, I, m, V, VI, tiny):
 def _set_face(V, FV, FN, FG, f, i, j, k):
     """Face f = (V[i], V[j], V[k]), counter-clockwise seen from outside: unit normal and offset."""
     FV[f, 0], FV[f, 1], FV[f, 2] = i, j, k
-    u, v = _diff(V, j, i), _diff(V, k, i)
-    n = _cross(u, v)
-    nn = math.sqrt(_dot(n, n))
-    FG[f] = nn > 1e-13 * math.sqrt(_dot(u, u) * _dot(v, v))  # slivers: no trustworthy normal, never expanded
+    u, v = diff(V, j, i), diff(V, k, i)
+    n = cross(u, v)
+    nn = math.sqrt(dot(n, n))
+    FG[f] = nn > 1e-13 * math.sqrt(dot(u, u) * dot(v, v))  # slivers: no trustworthy normal, never expanded
     if nn > 0.0:
         n = (n[0] / nn, n[1] / nn, n[2] / nn)
     FN[f, 0], FN[f, 1], FN[f, 2] = n
-    FN[f, 3] = (_dot(n, _row(V, i)) + _dot(n, _row(V, j)) + _dot(n, _row(V, k))) / 3.0
+    FN[f, 3] = (dot(n, row(V, i)) + dot(n, row(V, j)) + dot(n, row(V, k))) / 3.0
 
 
 @jit
@@ -582,7 +476,7 @@ def pair_distance(P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, rtol, atol, eps, witnes
         m, vx, vy, vz, _, _ = gjk(P, ix, fr, cone, -dist * nx, -dist * ny, -dist * nz, acc, loose, W, I, lam)
     px, py, pz = ox, oy, oz
     for j in range(m):
-        qx, qy, qz = _pt_a(P[0], P[1], ix[0], fr, I[j, 0])
+        qx, qy, qz = point_a(P[0], P[1], ix[0], fr, I[j, 0])
         al = cone[9 + 3 * I[j, 2]]  # the part of C_L's corner along a's axis
         px += lam[j] * (qx + al * cone[3])
         py += lam[j] * (qy + al * cone[4])

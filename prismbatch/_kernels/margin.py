@@ -35,8 +35,9 @@ import numpy as np
 from numba import prange
 
 from .batch import centres_world, pair_tolerance, unpack, use_parallel
-from .distance import BOX, GJK_MAX_ITER, closest, cone_box, pair_distance, support
+from .distance import BOX, GJK_MAX_ITER, closest, pair_distance
 from .jit import first_call, jit, twins
+from .minkowski import cone_box, support
 from .planar import point_polygon_distance
 
 #: The decision thresholds sit this fraction of the pair tolerance either side of the margin.
