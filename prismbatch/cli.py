@@ -209,7 +209,8 @@ def _experiment_parser(sub):
         default=None,
         metavar="UM",
         help="adapt the detach gain at each contact to the predicted approach: the smallest push the plant "
-        "model predicts leaves b this far (um) out of contact after the step (default: the fixed gain 10, as the paper)",
+        "model predicts leaves b this far (um) out of contact after the step "
+        "(default: the fixed gain 10, as the paper)",
     )
     p.add_argument(
         "--out",
