@@ -9,12 +9,14 @@ The answer for each pair is the first time in [0, horizon] at which the
 bodies touch (within the touching tolerance of :func:`~prismbatch.collide`),
 0 if they already do, inf if they do not within the horizon. It comes from
 conservative advancement on :func:`~prismbatch.distance`: from a gap d the time
-advances by d / V, V a proven bound on how fast any point of b that can take
-part in a first contact approaches a. b is semi-infinite, so its points far
-along the axis move without bound when the axis turns; only the part of b
-within S / sigma of its end face along the axis can make the first contact
-(``S = R_a + R_b + |c_b - c_a|``, sigma = 1 when the axes face each other and
-``|d_a x d_b|`` when they point the same way), which bounds V. No step can jump
+advances by a step that a proven bound on the closing rate keeps free of
+contact. b is semi-infinite, so its points far along the axis move without
+bound when the axis turns; only the part of b within S / sigma of its end face
+along the axis can make the first contact (``S = R_a + R_b + |c_b - c_a|``,
+sigma = 1 when the axes face each other and ``|d_a x d_b|`` when they point the
+same way). The rate is bounded directionally: along the computed normal, by
+how fast b's support point (or a's, seen from b) approaches, which near a
+contact is the distance's own rate, so few steps are needed. No step can jump
 over a contact, however fast the motion. The method and its proof are in
 ``docs/methods/time-of-impact.md`` and :mod:`prismbatch._kernels.motion`.
 """
@@ -167,16 +169,17 @@ def time_of_impact(
 
     Notes
     -----
-    Conservative advancement: from a gap d > tol the time advances by a step
-    tau with tau V <= d - m, m the distance's error bound (0.1 tol) and V a
-    proven bound, over the whole step, on how fast the part of b that can make
-    the first contact approaches a along the exact normal:
-    ``V = |v| cos(max(0, angle(-v, n) - phi)) + |w| rho_b + |w x d_b| beta``, with
-    phi the normal's error, rho_b the reach of b's end face from p_b and beta
-    the reach along b's axis of any contact point: at most S / sigma (S the pair
-    scale, sigma = 1 while the axes face each other, else ``|d_a x d_b|``) and,
-    while they face each other, ((c_b - c_a).d_a + R_b) / (-d_a.d_b), both at
-    their worst over the step. No step passes a contact, however fast the motion.
+    Conservative advancement: from a gap d > tol the time advances by the
+    longest step tau that one of three bounds proves free of contact, tau V < g:
+    g the separation along the computed normal n of the support planes of the
+    parts of a and b that can touch, and V the rate at which b's support along
+    -n, or a's support along -n turning with b, can approach (essentially
+    ``v.u + r*.(u x w)``, u = -n, r* the support point's lever, plus terms for
+    the turn of u over the step and for b's points along its axis up to S / sigma,
+    sigma = 1 while the axes face each other, else ``|d_a x d_b|``); or the gap
+    d - m (m the distance's error bound) along the exact normal with a
+    whole-body bound ``|v| cos(max(0, angle(-v, n) - phi)) + |w| rho_b +
+    |w x d_b| beta``. No step passes a contact, however fast the motion.
 
     Time tolerance: the reported time lies between the first time the bodies
     come within ``tol`` of each other and the first time they touch (both to the

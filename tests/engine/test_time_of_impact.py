@@ -270,3 +270,211 @@ def test_motion_widens_a_single_pose_and_horizons_per_pair():
     r = time_of_impact(SQUARE, b, [0, 0, 0], DOWN, [0, 0, 1.0], np.eye(3), vel, horizon=[2.0, 0.4, 2.0])
     assert r.status.tolist() == [CONTACT, CLEAR, CLEAR]
     assert abs(r.time[0] - 1.0) < 1e-8
+
+
+# --- adversarial motions for the directional bounds -------------------------------------------------
+
+
+def unit(x):
+    x = np.asarray(x, float)
+    return x / np.linalg.norm(x)
+
+
+def rodrigues_many(w, ts):
+    """exp(t [w]x) for every t of ``ts``, (m, 3, 3): :func:`rodrigues` at once."""
+    th = np.linalg.norm(w) * np.asarray(ts, float)
+    if not np.linalg.norm(w):
+        return np.broadcast_to(np.eye(3), (len(th), 3, 3))
+    k = np.asarray(w, float) / np.linalg.norm(w)
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + np.sin(th)[:, None, None] * K + (1.0 - np.cos(th))[:, None, None] * (K @ K)
+
+
+def reference_bracket(col, rot_a, pos_b, rot_b, v, w, horizon, level, bound, min_width, grid=256):
+    """(lo, hi) around the first time in [0, horizon] with distance <= level.
+
+    As :func:`reference_first`, but an interval still not cleared at ``min_width`` only sets ``lo`` (the
+    first time that may reach ``level``) and the scan goes on: ``hi`` is the first sampled time that does
+    reach it. So lo <= t(level) <= hi whenever hi is found; (None, None) proves the level never reached.
+    """
+    lo = [None]
+
+    def d(ts):
+        P = pos_b + np.outer(ts, v)
+        return col.distance(np.zeros(3), rot_a, P, rodrigues_many(w, ts) @ rot_b, parallel=False).distance
+
+    def first(t0, t1, n):
+        ts = np.linspace(t0, t1, n + 1)
+        ds = d(ts)
+        for j in range(n):
+            if ds[j] <= level:
+                return ts[j]
+            if ds[j] + ds[j + 1] - 2 * level > bound * (ts[j + 1] - ts[j]):
+                continue
+            if ts[j + 1] - ts[j] < min_width:
+                lo[0] = ts[j] if lo[0] is None else lo[0]
+                continue
+            found = first(ts[j], ts[j + 1], 16)
+            if found is not None:
+                return found
+        return ts[n] if ds[n] <= level else None
+
+    hi = first(0.0, horizon, grid)
+    return (hi if lo[0] is None else lo[0]), hi
+
+
+def adversarial_case(kind, rng):
+    """(a, b, pos_b, rot_b, v, w, horizon) of one family, built so that a directional bound missing one of
+    its terms passes a contact: spins about axes across the normal, fast spins, levers, sliding, side and
+    far contacts."""
+    a = pb.Prism.regular(5, 2.0, phase=rng.uniform(0, 1))
+    tilt = rodrigues(rng.normal(size=3), rng.uniform(0, 0.3))
+    horizon = float(10.0 ** rng.uniform(-2, 0))
+    if kind == "spin across n":  # b just above a's face, tipping fast about a horizontal axis
+        b = pb.Prism.regular(int(rng.integers(3, 9)), rng.uniform(0.3, 1.5))
+        pos_b = np.array([*rng.uniform(-2.5, 2.5, 2), b.radius * 0.3 + rng.uniform(0.01, 0.6)])
+        w = unit([*rng.normal(size=2), 0.05 * rng.normal()]) * rng.uniform(0.3, 1.2) / horizon
+        v = np.array([*rng.normal(scale=0.3, size=2), -rng.uniform(0, 1)]) * pos_b[2] / horizon
+        return a, b, pos_b, tilt, v, w, horizon
+    if kind == "fast spin about b's axis":  # a polygon whirling about its own axis near a's rim
+        b = pb.Prism.regular(int(rng.integers(3, 6)), rng.uniform(0.3, 1.0), centre=rng.uniform(-0.3, 0.3, 2))
+        ang = rng.uniform(0, 2 * math.pi)
+        reach = 2.0 + b.radius + np.linalg.norm(b.centre) + rng.uniform(0.02, 0.5)
+        pos_b = np.array([reach * math.cos(ang), reach * math.sin(ang), rng.uniform(-0.8, 0.3)])
+        horizon = 0.1 * horizon
+        w = tilt[:, 2] * rng.uniform(5, 30) / horizon + rng.normal(size=3) * 0.3 / horizon
+        v = -pos_b * rng.uniform(0, 0.3) / horizon
+        return a, b, pos_b, tilt, v, w, horizon
+    if kind == "lever":  # b's face far from p_b: the rotation about p_b swings it along a wide arc
+        b = pb.Prism.regular(int(rng.integers(3, 8)), rng.uniform(0.2, 0.6), centre=(rng.uniform(1.5, 3.0), 0.0))
+        pos_b = np.array([*rng.uniform(-2, 2, 2), rng.uniform(0.3, 1.2)])
+        w = unit(rng.normal(size=3)) * rng.uniform(0.2, 0.9) / horizon
+        target = np.array([*rng.uniform(-1.5, 1.5, 2), 0.0])
+        v = (target - pos_b) * rng.uniform(0.3, 1.5) / horizon
+        return a, b, pos_b, tilt, v, w, horizon
+    if kind == "slide":  # b's tilted face just over a's corner, sliding along itself fast while it tips:
+        # in b's frame the corner's lever and the turning normal make the gap close at 2 |v| |w| t
+        b = pb.Prism.regular(int(rng.integers(5, 9)), 3.0)
+        phase = rng.uniform(0, 1)
+        a = pb.Prism.regular(5, 2.0, phase=phase)
+        k = rng.integers(5)
+        e = DOWN @ np.array([math.cos(phase + 0.4 * math.pi * k), math.sin(phase + 0.4 * math.pi * k), 0.0])
+        db = math.cos(0.4) * np.array([0.0, 0.0, 1.0]) + math.sin(0.4) * e  # leaning out over the corner 2 e
+        pos_b = 2.0 * e + db * rng.uniform(0.005, 0.05)
+        f = unit(np.cross(db, rng.normal(size=3)))  # along b's face
+        turn = rng.uniform(0.5, 1.0) / horizon
+        v = f * rng.uniform(30, 60) * turn
+        w = np.cross(db, f) * turn * rng.choice([-1.0, 1.0])
+        rot_b = np.column_stack([f, np.cross(db, f), db])
+        return a, b, pos_b, rot_b, v, w, horizon
+    if kind == "side":  # b beside a's lateral face, its axis pointing away; a's axis across n
+        b = pb.Prism.regular(int(rng.integers(3, 9)), rng.uniform(0.2, 0.8))
+        out = rodrigues([0.0, 1.0, 0.0], math.pi / 2) @ tilt  # b's axis along +x (away from a)
+        ang = rng.uniform(-0.5, 0.5)
+        pos_b = np.array([2.0 + b.radius + rng.uniform(0, 0.5), 0.0, rng.uniform(-3.0, -0.5)])
+        pos_b[:2] = rot_z(ang)[:2, :2] @ pos_b[:2]
+        w = unit(rng.normal(size=3)) * rng.uniform(0.2, 0.8) / horizon
+        v = np.array([-rng.uniform(0, 0.8), rng.normal(scale=0.2), rng.normal(scale=0.2)]) / horizon
+        v[:2] = rot_z(ang)[:2, :2] @ v[:2]
+        return a, b, pos_b, out @ rot_z(rng.uniform(0, 6)), v, w, horizon
+    # "nearly parallel": both axes point down, b beside a leaning away (leaning towards, they would meet
+    # far down), turning towards a by up to half its lean: the contact is far along a's axis
+    b = pb.Prism.regular(int(rng.integers(3, 9)), rng.uniform(0.2, 0.6))
+    theta = rng.uniform(0.1, 0.4)
+    rot_b = rodrigues([0.0, 1.0, 0.0], -theta) @ DOWN
+    pos_b = np.array([2.0 + b.radius + rng.uniform(0.05, 0.8), rng.uniform(-1.0, 1.0), rng.uniform(-3.0, 0.5)])
+    w = np.array([0.2 * rng.normal(), rng.uniform(0.1, 0.5), 0.2 * rng.normal()]) * theta / horizon
+    v = np.array([-pos_b[0] * rng.uniform(0.2, 1.0), rng.normal(scale=0.2), rng.normal(scale=0.3)]) / horizon
+    return a, b, pos_b, rot_b, v, w, horizon
+
+
+def speed_bound(a, b, rot_a, pos_b, rot_b, v, w, horizon):
+    """A speed no witness point of b exceeds over the motion (for the reference): its lever from p_b is at
+    most |c_b| + R_b + 4 S / sigma (the distance's cut, ``docs/methods/distance.md``), sigma at its least."""
+    da, db = rot_a[:, 2], rot_b[:, 2]
+    theta = math.acos(np.clip(da @ db, -1, 1))
+    low = theta - np.linalg.norm(np.cross(w, db)) * horizon
+    assert low > 0.0, "the reference needs the axes kept apart"
+    sigma = 1.0 if low >= math.pi / 2 else math.sin(low)
+    cb = np.linalg.norm(b.centre)
+    spread = np.linalg.norm(v) + np.linalg.norm(w) * cb
+    s_max = 2 * a.radius + b.radius + np.linalg.norm(pos_b) + cb + spread * horizon
+    return 1.5 * (np.linalg.norm(v) + np.linalg.norm(w) * (cb + b.radius + 4.0 * s_max / sigma))
+
+
+@pytest.mark.parametrize(
+    "kind", ["spin across n", "fast spin about b's axis", "lever", "slide", "side", "nearly parallel"]
+)
+def test_adversarial_motions_against_sampling_and_bisection(kind):
+    # Each family is built so that the directional bounds are tight: a term left out of them (the turn of u
+    # over the step, the drift in b's frame, the polygon's other supports, the far points, the lever's
+    # turn) passes a contact in at least one of them. The reference cannot tunnel (see reference_bracket).
+    rng = np.random.default_rng(sum(map(ord, kind)))
+    n, hits = 10, 0
+    for _ in range(n):
+        a, b, pos_b, rot_b, v, w, horizon = adversarial_case(kind, rng)
+        col = pb.Collider(a, b)
+        r = col.time_of_impact([0, 0, 0], DOWN, pos_b, rot_b, v, w, horizon=horizon, pose=True)
+        args = (col, DOWN, pos_b, rot_b, v, w, horizon)
+        bound = speed_bound(a, b, DOWN, pos_b, rot_b, v, w, horizon)
+        width = 1e-11 * horizon
+        _, touch = reference_bracket(*args, 0.0, bound, width)  # the first sampled touching
+        if r.status[0] == CLEAR:
+            assert touch is None, (kind, touch)
+            continue
+        assert touch is None or r.time[0] <= touch, (kind, touch, r.time[0])  # no contact passed
+        if r.status[0] == CONTACT:
+            hits += 1
+            at = col.distance(np.zeros(3), DOWN, r.pos_b, r.rot_b)
+            assert at.distance[0] <= at.tol[0]
+            near, _ = reference_bracket(*args, at.tol[0], bound, width)  # nothing within tol before it
+            assert near is not None and near <= r.time[0], (kind, near, r.time[0])
+    assert 3 <= hits < n  # contacts and clear pairs both
+
+
+# --- extreme magnitudes against closed forms --------------------------------------------------------
+
+
+@pytest.mark.parametrize("size, far", [(1e-6, 1e3), (1e-6, 1e6), (1.0, 0.0), (1e6, 0.0), (1e6, 1e9)])
+def test_extreme_magnitudes_against_closed_forms(size, far):
+    # Tiny objects far from the world origin, huge ones, and motions from 1e-9 to 1e9 time units (speeds
+    # and turn rates over 18 decades, horizons to match): a straight approach onto a face and a square
+    # spinning into a side face, each reported between the first time within tol and the touching time.
+    s, P0 = size, far * np.array([0.8, -0.6, 0.3])
+    a = pb.Prism.regular(4, math.sqrt(2.0) * s, phase=math.pi / 4)  # the square [-s, s]^2
+    scales = np.array([1e-9, 1e-3, 1.0, 1e3, 1e9])  # the time each motion takes to touch
+    m = len(scales)
+    # straight down onto a's end face from h s above it: touching at h s / speed
+    b = pb.Prism.regular(6, 0.5 * s)
+    h = 0.7
+    speed = h * s / scales
+    pos_b = P0 + s * np.array([0.3, -0.2, h])
+    vel = np.column_stack([np.zeros(m), np.zeros(m), -speed])
+    col = pb.Collider(a, b)
+    assert (col.time_of_impact(P0, DOWN, pos_b, np.eye(3), vel, horizon=0.5 * scales).status == CLEAR).all()
+    r = col.time_of_impact(P0, DOWN, pos_b, np.eye(3), vel, horizon=2.0 * scales)
+    assert (r.status == CONTACT).all(), r.status
+    tol = col.distance(P0, DOWN, pos_b, np.eye(3)).tol[0]  # (the same at the touching pose: b moves by h s)
+    exact = h * s / speed
+    assert np.all(r.time >= exact - 1.01 * tol / speed) and np.all(r.time <= exact + 0.01 * tol / speed), r.time / exact
+    # a square of radius s spinning about its own axis at 0.335 rad per time scale, its centre g s outside
+    # a's side face x = s: the gap is s (g - cos(pi/4 - phi)) after a turn phi, touching at
+    # phi* = pi/4 - arccos(g)
+    g = 0.9
+    b = pb.Prism.regular(4, s, phase=math.pi / 4)
+    col = pb.Collider(a, b)
+    omega = (math.pi / 4 - math.acos(g)) / scales
+    pos_b = P0 + s * np.array([1.0 + g, 0.0, -0.5])
+    w = np.column_stack([np.zeros(m), np.zeros(m), omega])
+    r = col.time_of_impact(P0, DOWN, pos_b, np.eye(3), np.zeros(3), w, horizon=10.0 * scales, pose=True)
+    assert (r.status == CONTACT).all(), r.status
+    tol = col.distance(P0, DOWN, r.pos_b, r.rot_b).tol
+    assert np.all(tol < 0.01 * s)  # the test means something: the window is a small part of the turn
+    first = (math.pi / 4 - np.arccos(g - tol / s)) / omega  # the gap is tol here
+    assert np.all(r.time >= first * (1 - 1e-9)) and np.all(r.time <= scales * (1 + 1e-9)), (
+        r.time / scales,
+        first / scales,
+    )
+    np.testing.assert_allclose(r.pos_b, np.broadcast_to(pos_b, (m, 3)), rtol=0, atol=0)
+    for i in range(m):
+        np.testing.assert_allclose(r.rot_b[i], rot_z(omega[i] * r.time[i]), rtol=0, atol=1e-12)
