@@ -478,3 +478,88 @@ def test_extreme_magnitudes_against_closed_forms(size, far):
     np.testing.assert_allclose(r.pos_b, np.broadcast_to(pos_b, (m, 3)), rtol=0, atol=0)
     for i in range(m):
         np.testing.assert_allclose(r.rot_b[i], rot_z(omega[i] * r.time[i]), rtol=0, atol=1e-12)
+
+
+def hexes(*xs):
+    return np.array([float.fromhex(x) for x in xs])
+
+
+def test_thin_body_tumbling_fast_needs_the_turn_of_its_face():
+    # Found by an adversarial review's mutation of the kernel: a 1000:1 triangle and pentagon, b tumbling
+    # at 23.7 rad/s (5.6 rad over the horizon).
+    # Without the face term R_b |w| delta of the world-frame bound the step lands 4.5e-4 s past the contact
+    # (b 1.4e-3 deep in a, 1.4e6 tol); with it the reported time lies before the first sampled touching.
+    a_xy = hexes(
+        "-0x1.9d440f5989e64p-2",
+        "-0x1.1e29cff65b6c0p-3",
+        "-0x1.4b7704e211b7ep-2",
+        "-0x1.cc572db22bf23p-4",
+        "-0x1.5eecb254480c2p+0",
+        "-0x1.e0a06807b087bp-2",
+    )
+    b_xy = hexes(
+        "0x1.0433afe1d2e26p-1",
+        "-0x1.5432730afd524p+0",
+        "-0x1.976aea12f6d45p-2",
+        "0x1.0b049bad3a8a4p+0",
+        "-0x1.02a1ff5beefdfp-1",
+        "0x1.5253fd7710114p+0",
+        "-0x1.c3bd37ad5d743p-2",
+        "0x1.26d98eb699dd3p+0",
+        "-0x1.2e1d0d69dacd6p-8",
+        "0x1.084d91f6018c6p-7",
+    )
+    pos_a = hexes(
+        "0x1.22f26f69f5973p-1",
+        "-0x1.88c5d300867fbp-2",
+        "-0x1.1bf6f8aa1aed0p-2",
+    )
+    rot_a = hexes(
+        "0x1.b3f77cb221793p-1",
+        "-0x1.d00c49ac3ff9cp-4",
+        "-0x1.06215c1043da2p-1",
+        "-0x1.bb7b0b07d63d6p-3",
+        "-0x1.ee2feeb14db45p-1",
+        "-0x1.2c27790f8cb22p-3",
+        "-0x1.e904c492a18d7p-2",
+        "0x1.e2a17b5104f02p-3",
+        "-0x1.b15c2afc61a6fp-1",
+    )
+    pos_b = hexes(
+        "-0x1.9e04aa8006344p-1",
+        "0x1.0d736196d01b4p-1",
+        "0x1.3b635ac639590p-1",
+    )
+    rot_b = hexes(
+        "0x1.64ca7d4000ca0p-4",
+        "0x1.fdf41de8718a7p-1",
+        "0x1.43a2da410d640p-6",
+        "-0x1.7871c3fae2f7dp-1",
+        "0x1.a0f38fc1b4af0p-5",
+        "0x1.5a0e3fce977d2p-1",
+        "0x1.5828624d34eefp-1",
+        "-0x1.2ca3a50b120e4p-4",
+        "0x1.7935b209c0ce6p-1",
+    )
+    v = hexes(
+        "0x1.f1530a0ca523fp-11",
+        "0x1.38f2df61665a3p-5",
+        "-0x1.1109d2799f5bep-5",
+    )
+    w = hexes(
+        "0x1.4353cdc58a314p+4",
+        "-0x1.c09166e2a72c4p+1",
+        "-0x1.698f10fe4e47dp+3",
+    )
+    horizon = float.fromhex("0x1.ea60de6f7a56ap-3")
+    a, b = pb.Prism(a_xy.reshape(-1, 2)), pb.Prism(b_xy.reshape(-1, 2))
+    rot_a, rot_b = rot_a.reshape(3, 3), rot_b.reshape(3, 3)
+    r = time_of_impact(a, b, pos_a, rot_a, pos_b, rot_b, v, w, horizon=horizon)
+    assert r.status[0] == CONTACT
+    ts = np.linspace(0.0, r.time[0], 2001)[:-1]
+    m = len(ts)
+    rots = rodrigues_many(w, ts) @ rot_b
+    d = pb.distance(
+        a, b, np.broadcast_to(pos_a, (m, 3)), np.broadcast_to(rot_a, (m, 3, 3)), pos_b + np.outer(ts, v), rots
+    )
+    assert (d.distance > 0.0).all(), ts[np.argmax(d.distance <= 0.0)]
