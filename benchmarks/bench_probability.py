@@ -10,10 +10,13 @@
    theoretical count ``z^2 (1 - p) / (p rel^2)`` otherwise, against importance sampling
    (medians over seeds).
 3. **Coverage** of the 95 % intervals over repeated runs (different seeds) on the known-answer
-   case at the three levels, and on the squares with isotropic noise in all six components
-   (rotations included; the answer there from a long plain run).
+   case at the three levels, and with isotropic noise in all six components (rotations
+   included: one likeliest collision per corner that a tilt lowers) on facing squares,
+   triangles and 12-gons of circumradius 1 at height 0.5. Their answers come from long plain
+   runs: :data:`REFERENCES` (measured once, 2-4 x 10^8 samples each; ``--reference N``
+   measures them again with N plain samples each).
 
-    python benchmarks/bench_probability.py [--quick] [--repeats 200] [--out FILE.json]
+    python benchmarks/bench_probability.py [--quick] [--repeats 200] [--reference N] [--out FILE.json]
 """
 
 from __future__ import annotations
@@ -32,6 +35,14 @@ SQ = pb.Prism.regular(4, 1.0)
 DOWN = np.diag([1.0, -1.0, -1.0])
 FACING_COV = np.diag([0.05**2, 0.05**2, 0.1**2, 0.0, 0.0, 0.1**2])
 LEVELS = {1e-2: 0.232635, 1e-4: 0.371902, 1e-6: 0.475342}  # height giving p = Phi(-height / 0.1)
+ISO = np.eye(6) * 1e-2  # 0.1 in every translation and rotation component
+#: Isotropic cases: (polygon, height of b, p, 95 % interval of p) from plain sampling
+#: (hits / samples: squares 217726 / 4e8, triangles 69965 / 2e8, 12-gons 199740 / 2e8).
+REFERENCES = {
+    "squares": (SQ, 0.5, 5.44315e-4, (5.4203e-4, 5.4660e-4)),
+    "triangles": (pb.Prism.regular(3, 1.0), 0.5, 3.49825e-4, (3.4723e-4, 3.5242e-4)),
+    "12-gons": (pb.Prism.regular(12, 1.0), 0.5, 9.9870e-4, (9.9432e-4, 1.00308e-3)),
+}
 
 
 def phi_tail(x):
@@ -96,25 +107,31 @@ def needed(seeds, plain_up_to):
     return rows
 
 
-def coverage(repeats, quick):
+def reference(shape, height, samples):
+    """p and its 95 % interval by plain sampling (``samples`` of them) of an isotropic case."""
+    r = collision_probability(
+        shape, shape, np.zeros(3), DOWN, [0, 0, height], np.eye(3), ISO, seed=99, method="plain", rel_error=1e-9,
+        max_samples=samples,
+    )  # fmt: skip
+    return float(r.p[0]), (float(r.low[0]), float(r.high[0]))
+
+
+def coverage(repeats, quick, ref_samples):
     out = []
-    for p, h in LEVELS.items():
+    for j, (p, h) in enumerate(LEVELS.items()):  # a seed per case: rows on one seed share their draws
         pos = np.tile([0.0, 0.0, h], (repeats, 1))
         t = time.perf_counter()
-        r = collision_probability(SQ, SQ, np.zeros(3), DOWN, pos, np.eye(3), FACING_COV, seed=2)
+        r = collision_probability(SQ, SQ, np.zeros(3), DOWN, pos, np.eye(3), FACING_COV, seed=2 + j)
         exact = phi_tail(h / 0.1)
         out.append(_cov_row(f"facing, p = {p:g}", r, exact, time.perf_counter() - t))
-    if not quick:  # rotations in the noise: the answer from a long plain run
-        iso = np.eye(6) * 1e-2
-        ref = collision_probability(
-            SQ, SQ, np.zeros(3), DOWN, [0, 0, 0.5], np.eye(3), iso, seed=99, method="plain", rel_error=0.01,
-            max_samples=10**8,
-        )  # fmt: skip
-        pos = np.tile([0.0, 0.0, 0.5], (repeats, 1))
+    for j, (name, (shape, h, answer, interval)) in enumerate(({} if quick else REFERENCES).items()):
+        if ref_samples:
+            answer, interval = reference(shape, h, ref_samples)
+        pos = np.tile([0.0, 0.0, h], (repeats, 1))
         t = time.perf_counter()
-        r = collision_probability(SQ, SQ, np.zeros(3), DOWN, pos, np.eye(3), iso, seed=2)
-        row = _cov_row("isotropic 6-D noise, height 0.5", r, float(ref.p[0]), time.perf_counter() - t)
-        row["reference_interval"] = [float(ref.low[0]), float(ref.high[0])]
+        r = collision_probability(shape, shape, np.zeros(3), DOWN, pos, np.eye(3), ISO, seed=5 + j)
+        row = _cov_row(f"isotropic 6-D noise, {name}, height {h}", r, answer, time.perf_counter() - t)
+        row["reference_interval"] = list(interval)
         out.append(row)
     return out
 
@@ -126,9 +143,12 @@ def _cov_row(name, r, answer, seconds):
         answer=answer,
         runs=len(r),
         covered=float(covered.mean()),
+        low_side=float(np.mean(r.high < answer)),  # misses with the interval below the answer
+        high_side=float(np.mean(r.low > answer)),
         mean_p_over_answer=float(r.p.mean() / answer),
         converged=float(r.converged.mean()),
         median_samples=float(np.median(r.samples)),
+        mean_samples=float(np.mean(r.samples)),
         methods={int(m): int(c) for m, c in zip(*np.unique(r.method, return_counts=True))},
         seconds=seconds,
     )
@@ -136,8 +156,11 @@ def _cov_row(name, r, answer, seconds):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--quick", action="store_true", help="small sizes, no isotropic coverage case")
-    ap.add_argument("--repeats", type=int, default=200, help="runs per coverage case (default 200)")
+    ap.add_argument("--quick", action="store_true", help="small sizes, no isotropic coverage cases")
+    ap.add_argument("--repeats", type=int, default=1000, help="runs per coverage case (default 1000)")
+    ap.add_argument(
+        "--reference", type=int, default=0, help="measure the isotropic answers with this many plain samples"
+    )
     ap.add_argument("--out", help="write every figure to this JSON file")
     a = ap.parse_args()
     n = 1 << 18 if a.quick else 1 << 21
@@ -145,7 +168,7 @@ def main():
     res["rate_one_query"] = rate(n, 1, 3)
     res["rate_256_queries"] = rate(n, 256, 3)
     res["needed"] = needed(5 if a.quick else 20, 1e-4)
-    res["coverage"] = coverage(30 if a.quick else a.repeats, a.quick)
+    res["coverage"] = coverage(30 if a.quick else a.repeats, a.quick, a.reference)
     print(f"Numba threads: {res['threads']}\n")
     print("| rate | samples/s | collide pairs/s | ratio |\n|---|---|---|---|")
     for k in ("rate_one_query", "rate_256_queries"):
@@ -158,13 +181,20 @@ def main():
             f"| {r['p']:g} | {pr} | {r['plain_theory']:.3g} | {r['importance_median']:.0f} | "
             f"{r['importance_max']} | {r['importance_converged']:.2f} |"
         )
-    print("\n| case | runs | covered | mean p / answer | converged | median samples | methods | s |")
-    print("|---|---|---|---|---|---|---|---|")
+    # +-: the coverage's own sampling error (95 %; 1.5 % at 200 runs, 0.7 % at 1000)
+    print(
+        "\n| case | runs | covered | +- | high < answer | low > answer | mean p / answer | converged | median samples |"
+    )
+    print("|---|---|---|---|---|---|---|---|---|")
     for r in res["coverage"]:
+        pm = 1.96 * math.sqrt(r["covered"] * (1 - r["covered"]) / r["runs"])
         print(
-            f"| {r['case']} | {r['runs']} | {r['covered']:.3f} | {r['mean_p_over_answer']:.4f} | "
-            f"{r['converged']:.2f} | {r['median_samples']:.0f} | {r['methods']} | {r['seconds']:.1f} |"
+            f"| {r['case']} | {r['runs']} | {r['covered']:.3f} | {pm:.3f} | {r['low_side']:.3f} | "
+            f"{r['high_side']:.3f} | {r['mean_p_over_answer']:.4f} | {r['converged']:.2f} | {r['median_samples']:.0f} |"
         )
+    print("\n| case | methods | mean samples | s |\n|---|---|---|---|")
+    for r in res["coverage"]:
+        print(f"| {r['case']} | {r['methods']} | {r['mean_samples']:.0f} | {r['seconds']:.1f} |")
     if a.out:
         with open(a.out, "w") as f:
             json.dump(res, f, indent=1)

@@ -1,16 +1,26 @@
-"""Checks the engine and the lab make before a large allocation.
+"""Argument checks shared by the engine and the lab: real scalars, flags, numeric arrays, and memory.
 
-A size that cannot fit (a billion-vertex polygon, a simulation of years in
-milliseconds) is refused with one ValueError naming what needs the memory and
-how much, before anything is allocated, instead of driving the machine out of
-memory.
+Each raises a TypeError or ValueError that names the argument. A size that cannot
+fit (a billion-vertex polygon, a simulation of years in milliseconds) is refused
+with one ValueError naming what needs the memory and how much, before anything is
+allocated, instead of driving the machine out of memory.
 """
 
 from __future__ import annotations
 
 import os
 
-__all__ = ["available_memory", "check_memory", "format_bytes"]
+import numpy as np
+
+__all__ = [
+    "available_memory",
+    "check_memory",
+    "format_bytes",
+    "as_real_array",
+    "real_scalar",
+    "check_flag",
+    "indexed_name",
+]
 
 #: Requests below this are never refused and cost no system call (reading
 #: /proc/meminfo takes ~15 µs, a seventh of building a small Prism).
@@ -70,3 +80,51 @@ def check_memory(nbytes, what):
         raise ValueError(
             f"{what}: needs about {format_bytes(nbytes)}, more than the {format_bytes(avail)} of memory available"
         )
+
+
+def indexed_name(name: str, i: int | None) -> str:
+    """``name`` for a single item, ``name[i]`` for an item of a batch."""
+    return name if i is None else f"{name}[{i}]"
+
+
+def as_real_array(x, name: str) -> np.ndarray:
+    """``np.asarray`` that rejects non-real-numeric data with a named error."""
+    try:
+        arr = np.asarray(x)
+    except ValueError as exc:
+        # Ragged nested lists: numpy's own message does not say which argument.
+        raise ValueError(f"{name} could not be converted to an array: {exc}") from exc
+    # Only signed/unsigned integers and floats.  bool is excluded on purpose:
+    # a boolean "rotation" is almost certainly a mask passed by mistake.
+    if arr.dtype.kind not in "iuf":
+        raise TypeError(f"{name} must have a real numeric dtype (integer or float), got dtype {arr.dtype}")
+    return arr
+
+
+_FLOAT_MAX = float(np.finfo(np.float64).max)
+
+
+def real_scalar(x, name: str, lo: float = -_FLOAT_MAX, hi: float = _FLOAT_MAX) -> float:
+    """``x`` as a finite float in [lo, hi].
+
+    A real number or 0-d array of one; TypeError for strings, bools, None and
+    other non-numbers, ValueError for arrays of another shape, NaN, inf and
+    values out of range.
+    """
+    a = None if isinstance(x, (str, bytes, bool, np.bool_)) else np.asarray(x)
+    if a is None or a.dtype.kind not in "iuf":
+        raise TypeError(f"{name} must be a real number, got {type(x).__name__} {x!r}")
+    if a.ndim != 0:
+        raise ValueError(f"{name} must be a scalar, got shape {a.shape}")
+    v = float(a)
+    if not lo <= v <= hi:  # also NaN
+        rng = "finite" if lo == -_FLOAT_MAX else f"finite and >= {lo:g}"
+        raise ValueError(f"{name} must be {rng if hi == _FLOAT_MAX else f'in [{lo:g}, {hi:g}]'}, got {v!r}")
+    return v
+
+
+def check_flag(x, name: str, *, allow_none: bool = False) -> None:
+    """TypeError unless ``x`` is a bool (or None where allowed): a string such as 'no' is not False."""
+    if not (isinstance(x, (bool, np.bool_)) or (allow_none and x is None)):
+        allowed = "True, False or None" if allow_none else "True or False"
+        raise TypeError(f"{name} must be {allowed}, got {type(x).__name__} {x!r}")

@@ -10,14 +10,13 @@ import numpy as np
 from ._kernels import batch as _batch
 from ._kernels.jit import first_call
 from ._kernels.projection import CASES
+from .checks import check_flag, real_scalar
 from .config import MAX_RTOL, SUPPORTED_RANGE
 from .poses import (
     as_pose,
-    check_flag,
     common_batch_size,
     ortho_tolerance,
     position_message,
-    real_scalar,
     rotation_message,
     transforms_as_written,
 )

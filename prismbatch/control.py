@@ -18,8 +18,9 @@ import numpy as np
 
 from ._kernels.batch import use_parallel
 from ._kernels.detach import detach_parallel, detach_serial
+from .checks import as_real_array, check_flag, indexed_name, real_scalar
 from .config import NOT_A_CONTACT_RTOL
-from .poses import as_pose, as_real_array, as_rotations, check_flag, common_batch_size, indexed_name, real_scalar
+from .poses import as_pose, as_rotations, common_batch_size
 from .shapes import as_prism_set
 
 __all__ = ["detach", "DetachResult", "CONTACT_CLASSES"]

@@ -21,6 +21,7 @@ import math
 import numpy as np
 
 from ._kernels.checks import first_bad_rotation
+from .checks import as_real_array, indexed_name
 from .config import SUPPORTED_RANGE
 
 __all__ = [
@@ -61,11 +62,6 @@ _OUT_DTYPES = (np.dtype(np.float64), np.dtype(np.float32))
 # ---------------------------------------------------------------------------
 # small helpers
 # ---------------------------------------------------------------------------
-def indexed_name(name: str, i: int | None) -> str:
-    """``name`` for a single item, ``name[i]`` for an item of a batch."""
-    return name if i is None else f"{name}[{i}]"
-
-
 def _out_dtype(dtype) -> np.dtype:
     try:
         dt = np.dtype(dtype)
@@ -74,42 +70,6 @@ def _out_dtype(dtype) -> np.dtype:
     if dt not in _OUT_DTYPES:
         raise TypeError(f"dtype must be np.float64 or np.float32, got {dt}")
     return dt
-
-
-def as_real_array(x, name: str) -> np.ndarray:
-    """``np.asarray`` that rejects non-real-numeric data with a named error."""
-    try:
-        arr = np.asarray(x)
-    except ValueError as exc:
-        # Ragged nested lists: numpy's own message does not say which argument.
-        raise ValueError(f"{name} could not be converted to an array: {exc}") from exc
-    # Only signed/unsigned integers and floats.  bool is excluded on purpose:
-    # a boolean "rotation" is almost certainly a mask passed by mistake.
-    if arr.dtype.kind not in "iuf":
-        raise TypeError(f"{name} must have a real numeric dtype (integer or float), got dtype {arr.dtype}")
-    return arr
-
-
-_FLOAT_MAX = float(np.finfo(np.float64).max)
-
-
-def real_scalar(x, name: str, lo: float = -_FLOAT_MAX, hi: float = _FLOAT_MAX) -> float:
-    """``x`` as a finite float in [lo, hi].
-
-    A real number or 0-d array of one; TypeError for strings, bools, None and
-    other non-numbers, ValueError for arrays of another shape, NaN, inf and
-    values out of range.
-    """
-    a = None if isinstance(x, (str, bytes, bool, np.bool_)) else np.asarray(x)
-    if a is None or a.dtype.kind not in "iuf":
-        raise TypeError(f"{name} must be a real number, got {type(x).__name__} {x!r}")
-    if a.ndim != 0:
-        raise ValueError(f"{name} must be a scalar, got shape {a.shape}")
-    v = float(a)
-    if not lo <= v <= hi:  # also NaN
-        rng = "finite" if lo == -_FLOAT_MAX else f"finite and >= {lo:g}"
-        raise ValueError(f"{name} must be {rng if hi == _FLOAT_MAX else f'in [{lo:g}, {hi:g}]'}, got {v!r}")
-    return v
 
 
 def ortho_tolerance(input_dtype, compute_dtype) -> float:
@@ -191,13 +151,6 @@ def rotation_message(where: str, kind: int, value: float, tol: float) -> str:
     if kind == 2:
         return f"{where} is not orthonormal: max |R^T R - I| = {value:.3e} > {tol:.3g}; {ORTHO_HINT}"
     return f"{where} is a reflection (det = {value:.6g}); a rotation must have det = +1"
-
-
-def check_flag(x, name: str, *, allow_none: bool = False) -> None:
-    """TypeError unless ``x`` is a bool (or None where allowed): a string such as 'no' is not False."""
-    if not (isinstance(x, (bool, np.bool_)) or (allow_none and x is None)):
-        allowed = "True, False or None" if allow_none else "True or False"
-        raise TypeError(f"{name} must be {allowed}, got {type(x).__name__} {x!r}")
 
 
 def _check_rotation_matrices(R64: np.ndarray, name: str, tol: float, batched: bool, what: str = "") -> None:

@@ -18,9 +18,8 @@ import numpy as np
 
 from ._kernels.batch import pack, unpack
 from ._kernels.planar import edge_search_tables_each
-from .checks import check_memory, format_bytes
+from .checks import check_memory, format_bytes, real_scalar
 from .config import MAX_VERTICES, MIN_RELATIVE_AREA, MIN_RELATIVE_EDGE, SUPPORTED_RANGE
-from .poses import real_scalar
 
 __all__ = ["Prism", "PrismSet", "validate_polygon"]
 

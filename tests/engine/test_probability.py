@@ -1,5 +1,6 @@
 """prismbatch.probability.collision_probability: known answers, plain against importance sampling,
-rare events, interval coverage, reproducibility and bad input."""
+rare events, interval coverage, extreme magnitudes, reproducibility and bad input; the pieces of
+prismbatch.importance (design-point search, Hall's interval) against references written here."""
 
 from __future__ import annotations
 
@@ -7,9 +8,15 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from scipy import integrate, stats
+from scipy.spatial.transform import Rotation
 
 import prismbatch as pb
 from prismbatch._kernels.probability import sample_serial
+from prismbatch.collide import pair_scale_tolerance
+from prismbatch.importance import centres, design_points, design_starts, hall_interval
 from prismbatch.probability import EXACT, IMPORTANCE, PLAIN, collision_probability
 
 SQ = pb.Prism.regular(4, 1.0)  # unit-circumradius squares facing each other
@@ -132,7 +139,8 @@ def test_exact_cases_terminate_cheaply():
     assert r.p.tolist() == [0.0, 1.0] and (r.method == EXACT).all() and r.samples.tolist() == [0, 0]
     # far away, translation noise only: provably negligible, no sample drawn
     r = collision_probability(SQ, SQ, np.zeros(3), DOWN, [0, 0, 50.0], np.eye(3), np.diag([0.01] * 3 + [0] * 3))
-    assert r.p[0] == 0 and r.method[0] == EXACT and r.samples[0] == 0 and r.converged[0] and r.high[0] < 1e-300
+    assert r.p[0] == 0 and r.method[0] == EXACT and r.samples[0] == 0 and r.converged[0]
+    assert 0 < r.high[0] < 1e-300  # Phi(-500) underflows: rounded up, it stays an upper bound
     # far away with rotation noise: importance sampling, p underflows but the relative error is met
     r = collision_probability(SQ, SQ, np.zeros(3), DOWN, [0, 0, 3.0], np.eye(3), np.eye(6) * 1e-2, seed=0)
     assert r.method[0] == IMPORTANCE and r.converged[0] and r.p[0] < 1e-50 and r.samples[0] <= 300_000
@@ -204,3 +212,166 @@ def test_prism_sets_are_rejected():
     s = pb.PrismSet([SQ.xy, SQ.xy])
     with pytest.raises(TypeError, match="PrismSet"):
         collision_probability(s, SQ, np.zeros(3), DOWN, [[0, 0, 1.0], [0, 0, 2.0]], np.eye(3), np.eye(6))
+
+
+# --- importance sampling's pieces ----------------------------------------------------------------
+
+
+def test_hall_interval_covers_skewed_means():
+    """Means of zero-inflated lognormal samples (like importance weights: few hits, skewed
+    weights): the normal interval undercovers, Hall's is near its level; zero skew is normal."""
+    rng = np.random.default_rng(0)
+    reps, n, q = 2000, 500, 0.05
+    y = (rng.random((reps, n)) < q) * rng.lognormal(0.0, 1.0, (reps, n))
+    mu = q * math.exp(0.5)
+    mean, m2 = y.mean(1), y.var(1)
+    se, skew = np.sqrt(m2 / (n - 1)), ((y - mean[:, None]) ** 3).mean(1) / m2**1.5 / math.sqrt(n)
+    ends = np.array([hall_interval(*a, 1.96) for a in zip(mean, se, skew)])
+    hall = np.mean((ends[:, 0] <= mu) & (mu <= ends[:, 1]))
+    normal = np.mean(np.abs(mean - mu) <= 1.96 * se)
+    assert normal < 0.91 and 0.935 <= hall <= 0.965
+    assert np.all(ends[:, 1] - mean > mean - ends[:, 0])  # right-skewed samples: the upper side is longer
+    np.testing.assert_allclose(hall_interval(2.0, 0.5, 0.0, 1.96), (2.0 - 0.98, 2.0 + 0.98))
+
+
+def _rx(a):
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[1.0, 0, 0], [0, c, -s], [0, s, c]])
+
+
+@pytest.mark.parametrize("tilt", [0.0, 0.15])
+def test_design_search_finds_every_corner(tilt):
+    """Facing squares with isotropic noise have one likeliest collision per corner (a tilt
+    lowering it); the searches reach all four, and on b tilted by 1.5 standard deviations
+    the lowest corner and its two neighbours (the far corner is 1e-4 times less likely than
+    its neighbours). The distance and its gradient come from pb.distance, scipy's rotations
+    and central differences here, not from the estimator."""
+    sigma, height, h = 0.1, 0.5, 1e-6
+
+    def dist(z):
+        x = sigma * z
+        rot = Rotation.from_rotvec(x[:, 3:]).as_matrix() @ _rx(tilt)
+        return pb.distance(SQ, SQ, np.zeros(3), DOWN, np.array([0, 0, height]) + x[:, :3], rot).distance
+
+    def linearise(z):
+        m = len(z)
+        steps = np.concatenate([z] + [z + s * h * e for e in np.eye(6) for s in (1, -1)])
+        d = dist(steps).reshape(13, m)
+        return d[0], ((d[1::2] - d[2::2]) / (2 * h)).T
+
+    active = np.ones(6, bool)
+    d0, g0 = linearise(np.zeros((1, 6)))
+    reach = float(np.clip(d0[0] / np.linalg.norm(g0), 1, 5))  # as the estimator starts
+    z, miss = design_points(linearise, design_starts(active, np.random.default_rng(3), reach))
+    mu, lw = centres(z, miss, active)
+    # corners: tilt (z_4, z_5) along an axis; b's corner (0, -1) is the lowest once tilted
+    corner = (np.abs(mu[:, 3:5]).max(axis=1) > 1.0) & (np.linalg.norm(mu, axis=1) < 4.5)
+    tilts = {tuple(np.sign(np.round(m[3:5], 1)).astype(int)) for m in mu[corner]}
+    if tilt == 0:
+        # exact: dz + tilt lowering a corner at radius 1: 0.5 = 0.1 (|z_3| + |z_tilt|) at best
+        np.testing.assert_allclose(np.linalg.norm(mu[corner], axis=1), 5 / math.sqrt(2), rtol=0.01)
+        assert tilts == {(1, 0), (-1, 0), (0, 1), (0, -1)}
+        np.testing.assert_allclose(np.exp(lw[corner]), np.exp(lw[corner]).mean(), rtol=0.01)  # equally likely
+    else:
+        assert len(tilts) == 3 and np.argmax(lw) in np.flatnonzero(corner)
+
+
+# --- extreme magnitudes -------------------------------------------------------------------------
+
+
+def within(r, p, i=0):
+    """One run's interval against the answer: a 95 % interval may miss; twice its width may not."""
+    half = (r.high[i] - r.low[i]) / 2
+    return r.converged[i] and abs(r.p[i] - p) < 2 * half
+
+
+@pytest.mark.parametrize("size, far", [(1e-6, 1e3), (1e-6, 1e6), (1e4, 1e6), (1e4, 0.0)])
+@pytest.mark.parametrize("level", [0.1, 0.3719, 0.47534])
+def test_known_answer_at_extreme_scales(size, far, level):
+    """The facing squares scaled by ``size`` and moved ``far`` from the origin: p = Phi(-height / sz)
+    with the height the poses really hold (rounding at 1e6 moves it by ~1e-10)."""
+    S = pb.Prism.regular(4, size)
+    o = far * np.array([0.6, -0.48, 0.64])
+    D = np.diag([size] * 3 + [1.0] * 3)
+    pb_ = o + [0, 0, level * size]
+    r = collision_probability(S, S, o, DOWN, pb_, np.eye(3), D @ facing_cov(0.1) @ D, seed=4)
+    assert r.method[0] == (PLAIN if level < 0.2 else IMPORTANCE)
+    assert within(r, phi_tail((pb_[2] - o[2]) / (0.1 * size)))
+
+
+def _iso(size):
+    D = np.diag([size] * 3 + [1.0] * 3)
+    return D @ (np.eye(6) * 1e-2) @ D
+
+
+_UNIT = {}
+
+
+@settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(log_size=st.floats(-6, 4), log_far=st.floats(3, 6), seed=st.integers(0, 3))
+def test_scale_and_offset_invariance_with_rotation_noise(log_size, log_far, seed):
+    """Scaling the bodies, their distance and the translation noise by one factor, and moving
+    them far from the origin, leaves p alone (rotations are about each body's position)."""
+    if seed not in _UNIT:
+        _UNIT[seed] = collision_probability(SQ, SQ, np.zeros(3), DOWN, [0, 0, 0.45], np.eye(3), _iso(1.0), seed=seed)
+    ref, s = _UNIT[seed], 10.0**log_size
+    S, o = pb.Prism.regular(4, s), 10.0**log_far * np.array([-0.36, 0.48, 0.8])
+    r = collision_probability(S, S, o, DOWN, o + [0, 0, 0.45 * s], np.eye(3), _iso(s), seed=seed)
+    se = lambda r: (r.high[0] - r.low[0]) / (2 * 1.96)  # noqa: E731
+    assert r.method[0] == ref.method[0] == IMPORTANCE and r.converged[0]
+    assert abs(r.p[0] - ref.p[0]) < 4 * math.hypot(se(r), se(ref))
+
+
+def test_noise_large_against_the_bodies():
+    """Sideways noise 3 to 10 times the squares' size: p = Phi(-height / sz) P(|dx| + |dy| <= 2)
+    (the footprints, diamonds of circumradius 1, overlap iff the shift is in their Minkowski sum)."""
+
+    def overlap(s):
+        f = lambda x: stats.norm.pdf(x, scale=s) * (2 * stats.norm.cdf((2 - abs(x)) / s) - 1)  # noqa: E731
+        return integrate.quad(f, -2, 2, points=[0.0])[0]
+
+    for sxy, sz, height, method in [(3.0, 1.0, 2.5, IMPORTANCE), (10.0, 10.0, 5.0, PLAIN)]:
+        cov = np.diag([sxy**2, sxy**2, sz**2, 0, 0, 0])
+        r = collision_probability(SQ, SQ, np.zeros(3), DOWN, [0, 0, height], np.eye(3), cov, seed=1)
+        assert r.method[0] == method and within(r, phi_tail(height / sz) * overlap(sxy))
+
+
+def test_large_rotation_noise_against_plain_reference():
+    """Rotations of a radian or more (the body may turn over): plain sampling written here."""
+    cov = np.diag([0.3**2] * 3 + [1.5**2] * 3)
+    rng = np.random.default_rng(7)
+    n = 40_000
+    x = rng.multivariate_normal(np.zeros(6), cov, size=n)
+    rot = Rotation.from_rotvec(x[:, 3:]).as_matrix()
+    hits = pb.collide(A5, B6, np.zeros(3), DOWN, np.array([0.5, 0, 3.0]) + x[:, :3], rot).hit.mean()
+    r = collision_probability(A5, B6, np.zeros(3), DOWN, [0.5, 0, 3.0], np.eye(3), cov, seed=3, rel_error=0.03)
+    se_ref, se = math.sqrt(hits * (1 - hits) / n), (r.high[0] - r.low[0]) / (2 * 1.96)
+    assert 0.2 < hits < 0.5 and abs(r.p[0] - hits) < 4 * math.hypot(se, se_ref)
+
+
+def test_noise_small_against_the_bodies_and_the_touching_band():
+    """Height noise 1e-8 of the squares' size: collide's touching band (rtol 1e-9 of the scene
+    size) counts as contact and moves the boundary by a fifth of sz; with rtol 1e-15 the answer
+    is Phi(-height / sz) again."""
+    sz = 1e-8
+    height = 3.719 * sz
+    cov = np.diag([(0.5 * sz) ** 2, (0.5 * sz) ** 2, sz**2, 0, 0, 0.1**2])
+    args = (SQ, SQ, np.zeros(3), DOWN, [0, 0, height], np.eye(3), cov)
+    r = collision_probability(*args, seed=1, rtol=1e-15)
+    assert r.method[0] == IMPORTANCE and within(r, phi_tail(height / sz))
+    _, tol = pair_scale_tolerance(SQ, SQ, np.zeros((1, 3)), DOWN[None], np.array([[0, 0, height]]), np.eye(3)[None])
+    assert tol[0] > 0.1 * sz
+    r = collision_probability(*args, seed=1)
+    assert r.low[0] <= phi_tail((height - tol[0]) / sz) * 1.2 and r.high[0] >= phi_tail(height / sz)
+
+
+def test_probabilities_near_zero_and_one():
+    # far below the smallest float64 with rotation noise: reported 0, converged, a positive high
+    r, _ = known(5.0, seed=1)  # Phi(-50) ~ 1e-545
+    assert r.method[0] == IMPORTANCE and r.converged[0] and r.p[0] == 0.0 and 0 < r.high[0] < 1e-300
+    r, p = known(3.0, seed=1)  # Phi(-30) ~ 5e-198: still a float, and estimated to rel_error
+    assert r.method[0] == IMPORTANCE and within(r, p) and r.samples[0] < 100_000
+    r, p = known(-0.3, seed=1)  # Phi(3) ~ 0.99865
+    assert r.method[0] == PLAIN and within(r, p) and r.high[0] <= 1.0
+    r, p = known(-0.65, seed=1)  # 1 - 1e-10: every sample collides
+    assert r.p[0] == 1.0 and r.high[0] == 1.0 and r.low[0] > 0.99 and r.converged[0]

@@ -25,8 +25,8 @@ from statistics import NormalDist
 
 import numpy as np
 
+from ...importance import wilson
 from ...motion import CONTACT, UNDECIDED
-from ...probability import wilson
 from .model import UM, batch_poses
 
 #: Seconds ahead the alarm looks.

@@ -7,6 +7,8 @@ import math
 
 import numpy as np
 
+from ...importance import wilson
+
 Z95 = 1.959963984540054  # two-sided 95 % normal quantile
 
 
@@ -31,15 +33,7 @@ def wilson_interval(k, n, z=Z95):
     n = np.asarray(n, dtype=float)
     if np.any(k < 0) or np.any(k > n):
         raise ValueError(f"k must satisfy 0 <= k <= n, got k={k}, n={n}")
-    with np.errstate(invalid="ignore", divide="ignore"):
-        p = k / n
-        den = 1.0 + z * z / n
-        mid = (p + z * z / (2 * n)) / den
-        half = z * np.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / den
-        lo, hi = np.clip(mid - half, 0.0, 1.0), np.clip(mid + half, 0.0, 1.0)
-    # exact ends: the interval must contain p even after rounding
-    lo = np.where(k == 0, 0.0, np.minimum(lo, p))
-    hi = np.where(k == n, 1.0, np.maximum(hi, p))
+    lo, hi = wilson(k, n, z)
     if lo.ndim == 0:
         return float(lo), float(hi)
     return lo, hi
