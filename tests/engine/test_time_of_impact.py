@@ -106,34 +106,9 @@ def test_already_touching_is_zero_and_moving_away_is_inf():
 
 
 def reference_first(col, pos_a, rot_a, pos_b, rot_b, v, w, horizon, level, bound, grid=256, min_width=1e-9):
-    """First time in [0, horizon] with distance <= level (None if there is none), to within min_width.
-
-    d(t) sampled on a grid; an interval [t0, t1] is clear when d(t0) + d(t1) - 2 level > bound (t1 - t0),
-    ``bound`` a speed no point of b that can come within ``level`` of a exceeds on these motions;
-    otherwise it is split in 16, in order, down to ``min_width`` (then reported as the first time).
-    """
-
-    def d(ts):
-        P = pos_b + np.outer(ts, v)
-        R = np.array([rodrigues(w, t) @ rot_b for t in ts])
-        return col.distance(pos_a, rot_a, P, R, parallel=False).distance
-
-    def first(t0, t1, n):
-        ts = np.linspace(t0, t1, n + 1)
-        ds = d(ts)
-        for j in range(n):
-            if ds[j] <= level:
-                return ts[j]
-            if ds[j] + ds[j + 1] - 2 * level > bound * (ts[j + 1] - ts[j]):
-                continue
-            if ts[j + 1] - ts[j] < min_width:
-                return ts[j]
-            found = first(ts[j], ts[j + 1], 16)
-            if found is not None:
-                return found
-        return ts[n] if ds[n] <= level else None
-
-    return first(0.0, horizon, grid)
+    """First time in [0, horizon] with distance <= level (None if there is none), to within min_width:
+    the lower end of :func:`reference_bracket`."""
+    return reference_bracket(col, pos_a, rot_a, pos_b, rot_b, v, w, horizon, level, bound, min_width, grid)[0]
 
 
 def random_motions(rng, n, b_radius):
@@ -290,18 +265,21 @@ def rodrigues_many(w, ts):
     return np.eye(3) + np.sin(th)[:, None, None] * K + (1.0 - np.cos(th))[:, None, None] * (K @ K)
 
 
-def reference_bracket(col, rot_a, pos_b, rot_b, v, w, horizon, level, bound, min_width, grid=256):
+def reference_bracket(col, pos_a, rot_a, pos_b, rot_b, v, w, horizon, level, bound, min_width, grid=256):
     """(lo, hi) around the first time in [0, horizon] with distance <= level.
 
-    As :func:`reference_first`, but an interval still not cleared at ``min_width`` only sets ``lo`` (the
-    first time that may reach ``level``) and the scan goes on: ``hi`` is the first sampled time that does
-    reach it. So lo <= t(level) <= hi whenever hi is found; (None, None) proves the level never reached.
+    d(t) sampled on a grid; an interval [t0, t1] is clear when d(t0) + d(t1) - 2 level > bound (t1 - t0),
+    ``bound`` a speed no point of b that can come within ``level`` of a exceeds on these motions;
+    otherwise it is split in 16, in order, down to ``min_width``. An interval still not cleared then only
+    sets ``lo`` (the first time that may reach ``level``) and the scan goes on: ``hi`` is the first sampled
+    time that does reach it. So lo <= t(level) <= hi whenever hi is found; (None, None) proves the level
+    never reached.
     """
     lo = [None]
 
     def d(ts):
         P = pos_b + np.outer(ts, v)
-        return col.distance(np.zeros(3), rot_a, P, rodrigues_many(w, ts) @ rot_b, parallel=False).distance
+        return col.distance(pos_a, rot_a, P, rodrigues_many(w, ts) @ rot_b, parallel=False).distance
 
     def first(t0, t1, n):
         ts = np.linspace(t0, t1, n + 1)
@@ -415,7 +393,7 @@ def test_adversarial_motions_against_sampling_and_bisection(kind):
         a, b, pos_b, rot_b, v, w, horizon = adversarial_case(kind, rng)
         col = pb.Collider(a, b)
         r = col.time_of_impact([0, 0, 0], DOWN, pos_b, rot_b, v, w, horizon=horizon, pose=True)
-        args = (col, DOWN, pos_b, rot_b, v, w, horizon)
+        args = (col, np.zeros(3), DOWN, pos_b, rot_b, v, w, horizon)
         bound = speed_bound(a, b, DOWN, pos_b, rot_b, v, w, horizon)
         width = 1e-11 * horizon
         _, touch = reference_bracket(*args, 0.0, bound, width)  # the first sampled touching
