@@ -189,7 +189,7 @@ class Collider:
                         "contact=True needs margin=0: a margin hit need not touch (for the nearest points "
                         "use distance(..., witness=True))"
                     )
-                n, pa, ra, pb, rb = self._batch_poses(pos_a, rot_a, pos_b, rot_b, quat_order)
+                n, pa, ra, pb, rb = self._batch_poses(pos_a, rot_a, pos_b, rot_b, quat_order, parallel)
                 hit = run_margin(self._a, self._b, pa, ra, pb, rb, n, margin, self.rtol, self.atol, parallel)
                 return CollisionResult(hit, np.zeros(n, dtype=np.int8))
         if self._is_single_pair(pos_a, rot_a, pos_b, rot_b, quat_order):
@@ -200,7 +200,7 @@ class Collider:
                 np.array([r.case], dtype=np.int8),
                 r.contact[None, :].astype(self.dtype) if contact else None,
             )
-        n, pa, ra, pb, rb = self._batch_poses(pos_a, rot_a, pos_b, rot_b, quat_order)
+        n, pa, ra, pb, rb = self._batch_poses(pos_a, rot_a, pos_b, rot_b, quat_order, parallel)
         hit, case, cont = _batch.run(
             self._a,
             self._b,
@@ -230,7 +230,7 @@ class Collider:
             if problem:
                 raise ValueError(_pair_problem(problem, val, self._pair_scalars[3], self._max_magnitude))
             return res
-        poses = self._batch_poses(pos_a, rot_a, pos_b, rot_b, quat_order)
+        poses = self._batch_poses(pos_a, rot_a, pos_b, rot_b, quat_order, parallel)
         return signed_distance(
             self._a,
             self._b,
@@ -265,7 +265,7 @@ class Collider:
         check_flag(pose, "pose")
         check_flag(contact, "contact")
         check_flag(parallel, "parallel", allow_none=True)
-        poses = self._batch_poses(pos_a, rot_a, pos_b, rot_b, quat_order)
+        poses = self._batch_poses(pos_a, rot_a, pos_b, rot_b, quat_order, parallel)
         return impact_times(
             self._a,
             self._b,
@@ -293,10 +293,10 @@ class Collider:
                         confidence=confidence, max_samples=max_samples, seed=seed, method=method,
                         query_index=query_index, quat_order=quat_order, parallel=parallel)  # fmt: skip
 
-    def _batch_poses(self, pos_a, rot_a, pos_b, rot_b, quat_order):
+    def _batch_poses(self, pos_a, rot_a, pos_b, rot_b, quat_order, parallel):
         """``(n, pos_a, rot_a, pos_b, rot_b)``: the poses checked, sized and converted once for the kernels."""
-        pa, ra = as_pose(pos_a, rot_a, quat_order=quat_order, name="a", dtype=self.dtype)
-        pb, rb = as_pose(pos_b, rot_b, quat_order=quat_order, name="b", dtype=self.dtype)
+        pa, ra = as_pose(pos_a, rot_a, quat_order=quat_order, name="a", dtype=self.dtype, parallel=parallel)
+        pb, rb = as_pose(pos_b, rot_b, quat_order=quat_order, name="b", dtype=self.dtype, parallel=parallel)
         n = common_batch_size(pa, ra, pb, rb, n_shapes=self._n_shapes)
         dt = self.dtype
         pa, pb = _kernel_array(pa, (-1, 3), dt), _kernel_array(pb, (-1, 3), dt)

@@ -2,6 +2,8 @@
 
 import math
 
+from numba import prange
+
 from .jit import jit
 
 
@@ -36,3 +38,20 @@ def first_bad_rotation(Rb, tol):
         if det <= 0.0:
             return i, 3, det
     return -1, 0, 0.0
+
+
+def _first_bad_rotation_chunks(Rb, tol, first):
+    """:func:`first_bad_rotation` of each of ``len(first)`` equal chunks of ``Rb``, written to
+    ``first[c] = (index, kind, value)`` (index -1 where the chunk is good): the first bad matrix of
+    the batch is the first chunk's that has one."""
+    n = Rb.shape[0]
+    m = first.shape[0]
+    for c in prange(m):
+        lo = c * n // m
+        i, kind, val = first_bad_rotation(Rb[lo : (c + 1) * n // m], tol)
+        first[c, 0] = i + lo if kind != 0 else -1.0
+        first[c, 1] = kind
+        first[c, 2] = val
+
+
+first_bad_rotation_parallel = jit(parallel=True)(_first_bad_rotation_chunks)

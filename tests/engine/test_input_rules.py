@@ -125,3 +125,28 @@ def test_collide_with_float32_accepts_six_decimal_rotations():
 def test_one_pair_message_carries_the_hint():
     with pytest.raises(ValueError, match=r"rot_a is not orthonormal.*" + HINT):
         pb.Collider(A, B).collide_pair(np.zeros(3), R6, np.ones(3), np.eye(3))
+
+
+@pytest.mark.parametrize("kind", ["not orthonormal", "reflection", "non-finite"])
+def test_parallel_rotation_check_names_the_first_bad_matrix(kind):
+    # The check runs in chunks on the threads for large batches: the first bad matrix is the one named.
+    n = 20_000
+    rng = np.random.default_rng(len(kind))
+    rot = np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
+    bad = np.sort(rng.choice(n, 5, replace=False))
+    for i in bad:
+        if kind == "not orthonormal":
+            rot[i, 0, 0] = 1.001
+        elif kind == "reflection":
+            rot[i, 2, 2] = -1.0
+        else:
+            rot[i, 1, 2] = np.nan
+    col = pb.Collider(pb.Prism.regular(4, 1.0), pb.Prism.regular(4, 1.0))
+    pos = np.zeros((n, 3))
+    messages = []
+    for parallel in (False, True):
+        with pytest.raises(ValueError) as err:
+            col.collide(pos, rot, pos, np.eye(3), parallel=parallel)
+        messages.append(str(err.value))
+    assert messages[0] == messages[1]
+    assert f"rot_a[{bad[0]}]" in messages[1]
