@@ -240,7 +240,7 @@ def _kernel_data(ccw, centre):
     """Per-vertex arrays the kernels use (see PrismSet attributes) of polygons (m, n, 2) about centres (m, 2).
 
     Returns ``(v (m, n, 2), edge_angle (m, n), edge_table (m, n), vertex_angle (m, n),
-    inv_edge_len (m, n), radius (m,))``.
+    inv_edge_len (m, n))``.
     """
     m, n = ccw.shape[:2]
     v = ccw - centre[:, None, :]
@@ -260,8 +260,12 @@ def _kernel_data(ccw, centre):
     vang = np.arctan2(v[:, :1, 1], v[:, :1, 0]) + np.concatenate(
         (np.zeros((m, 1)), np.cumsum(step[:, 1:], axis=1)), axis=1
     )
-    radius = np.hypot(v[..., 0], v[..., 1]).max(axis=1)
-    return v, eang, etab, vang, 1.0 / elen, radius
+    return v, eang, etab, vang, 1.0 / elen
+
+
+def _radii(ccw, centres):
+    """Bounding radii (m,) of polygons (m, n, 2) about their centres (m, 2)."""
+    return np.hypot(ccw[..., 0] - centres[:, :1], ccw[..., 1] - centres[:, 1:]).max(axis=1)
 
 
 class Prism:
@@ -293,7 +297,8 @@ class Prism:
         n = _vertex_count(xy)
         check_memory(n * _BYTES_PER_VERTEX, f"{name} of {n:,} vertices")
         ccw = validate_polygon(xy, name=name)
-        self._set(ccw, _centroids(ccw[None])[0])
+        centre = _centroids(ccw[None])[0]
+        self._set(ccw, centre, float(_radii(ccw[None], centre[None])[0]))
 
     @classmethod
     def _checked(cls, ccw, centre, radius):
@@ -302,11 +307,11 @@ class Prism:
         prism._set(ccw, centre, radius)
         return prism
 
-    def _set(self, ccw, centre, radius=None):
+    def _set(self, ccw, centre, radius):
         self.xy = ccw
         self.xy.flags.writeable = False
         self.centre = centre
-        self.radius = float(np.max(np.hypot(*(ccw - centre).T))) if radius is None else radius
+        self.radius = radius
 
     @classmethod
     def regular(cls, n, radius, *, phase=0.0, centre=(0.0, 0.0)):
@@ -401,21 +406,20 @@ class PrismSet:
         counts = np.array([p.n_vertices for p in self.prisms], dtype=np.int64)
         self.offsets = np.concatenate(([0], np.cumsum(counts))).astype(np.int64)
         self.centre = np.array([p.centre for p in self.prisms]).reshape(-1, 2)
+        self.radius = np.array([p.radius for p in self.prisms])
         # The kernel tables of the polygons of each vertex count at once, then put in set order.
         n_total = int(self.offsets[-1])
         v = np.empty((n_total, 2))
         self.edge_angle, self.vertex_angle, self.inv_edge_len = np.empty(n_total), np.empty(n_total), np.empty(n_total)
         self.edge_table = np.empty(n_total, dtype=np.int64)
-        self.radius = np.empty(len(self.prisms))
         for n in np.unique(counts):
             ks = np.flatnonzero(counts == n)
             xy = np.stack([self.prisms[k].xy for k in ks])
             rows = (self.offsets[ks][:, None] + np.arange(n)).ravel()
             parts = _kernel_data(xy, self.centre[ks])
             v[rows] = parts[0].reshape(-1, 2)
-            for dest, part in zip((self.edge_angle, self.edge_table, self.vertex_angle, self.inv_edge_len), parts[1:5]):
+            for dest, part in zip((self.edge_angle, self.edge_table, self.vertex_angle, self.inv_edge_len), parts[1:]):
                 dest[rows] = part.ravel()
-            self.radius[ks] = parts[5]
         self.vx = np.ascontiguousarray(v[:, 0])
         self.vy = np.ascontiguousarray(v[:, 1])
         for arr in (
@@ -512,8 +516,7 @@ def _build_prisms(polygons):
         if len(ok):
             ccw = checks.ccw[ok]
             centres = _centroids(ccw)
-            radii = np.hypot(ccw[..., 0] - centres[:, :1], ccw[..., 1] - centres[:, 1:]).max(axis=1)
-            for j, xy, c, r in zip(ok, ccw, centres, radii):
+            for j, xy, c, r in zip(ok, ccw, centres, _radii(ccw, centres)):
                 prisms[ks[j]] = Prism._checked(xy, c, float(r))
         for j in np.flatnonzero(~checks.ok):
             errors[ks[j]] = (checks, j, stack[j])
