@@ -165,8 +165,8 @@ class ProbabilityResult(BatchResult):
     @staticmethod
     def concatenate(parts, seed, confidence, rel_error):
         """The results of consecutive query ranges as one (for chunked runs)."""
-        names = ("p", "low", "high", "samples", "converged", "method", "hits", "beta")
-        arrays = {k: np.concatenate([getattr(r, k) for r in parts]) for k in names}
+        columns = [r.columns() for r in parts]
+        arrays = {k: np.concatenate([c[k] for c in columns]) for k in columns[0]}
         return ProbabilityResult(**arrays, seed=seed, confidence=confidence, rel_error=rel_error)
 
 
