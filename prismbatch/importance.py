@@ -6,8 +6,9 @@ Three parts, all in the standard-normal coordinates ``z`` of the noise (``x = L 
   Hasofer-Lind steps on a linearisation the caller supplies, from the nominal pose, from
   both directions of every noise axis (as far out as the caller's linear estimate of the
   boundary) and from random antithetic pairs;
-- the defensive mixture proposal about the design points found, its draws and their log
-  weights ``log phi(z) / q(z)``;
+- the defensive mixture proposal about the design points found (its centres and weights; the
+  draws and their log weights ``log phi(z) / q(z)`` are made in the compiled sampling loop,
+  :func:`prismbatch._kernels.probability.count_serial`);
 - :class:`Tally`, the running sums of one estimate and its interval: Wilson's for plain
   sampling, Hall's skewness-corrected one for weighted samples (:func:`hall_interval`).
 
@@ -30,7 +31,6 @@ __all__ = [
     "design_starts",
     "design_points",
     "centres",
-    "draw",
     "hall_interval",
     "wilson",
     "Tally",
@@ -121,30 +121,6 @@ def centres(z, miss, active):
     return cand[kept], lw - np.logaddexp.reduce(lw)
 
 
-def draw(rng, m, k, mix=None):
-    """``m`` noise values ``z`` (m, k) and their log weights ``log phi(z) / q(z)`` (m,).
-
-    ``mix`` None: the nominal ``N(0, I)`` (weights 1). Else ``(mu, log pi, active)``: the
-    defensive mixture ``DEFENSIVE N(0, I) + (1 - DEFENSIVE) sum_j pi_j N(mu_j, S_j)`` with
-    ``S_j`` ``SPREAD^2`` on the active components and 1 on the others; its weights are at most
-    ``1 / DEFENSIVE``.
-    """
-    z = rng.standard_normal((m, k))
-    if mix is None:
-        return z, np.zeros(m)
-    mu, lpi, active = mix
-    u = rng.random(m)
-    # component of each sample: the nominal below DEFENSIVE, else centre j by its weight
-    comp = np.searchsorted(DEFENSIVE + (1 - DEFENSIVE) * np.cumsum(np.exp(lpi))[:-1], u, side="right")
-    shifted = u >= DEFENSIVE
-    z[shifted] = mu[comp[shifted]] + np.where(active, SPREAD, 1.0) * z[shifted]
-    za = z * active  # the inactive components have the same density under q and phi
-    zz = (za * za).sum(1)
-    d2 = np.maximum(zz[:, None] - 2 * za @ mu.T + (mu * mu).sum(1)[None], 0.0)  # |z - mu_j|^2, (m, J)
-    lr = np.logaddexp.reduce(lpi - 0.5 * d2 / SPREAD**2 - active.sum() * math.log(SPREAD), axis=1) + 0.5 * zz
-    return z, -np.logaddexp(math.log(DEFENSIVE), math.log1p(-DEFENSIVE) + lr)
-
-
 def wilson(hits, n, z):
     """Wilson score interval ``(low, high)`` of ``hits`` successes in ``n`` trials (arrays; NaN where ``n == 0``)."""
     hits, n = np.asarray(hits, dtype=np.float64), np.asarray(n, dtype=np.float64)
@@ -188,17 +164,17 @@ class Tally:
     def __init__(self):
         self.n, self.hits, self.shift, self.s1, self.s2, self.s3 = 0, 0, -math.inf, 0.0, 0.0, 0.0
 
-    def add(self, m, lw):
-        """Count ``m`` samples of which the hits have log weights ``lw``."""
+    def add_sums(self, m, hits, shift, s1, s2, s3):
+        """Count ``m`` samples of which ``hits`` hit, the hits' log weights ``lw`` giving
+        ``s_p = sum exp(p (lw - shift))`` for p = 1, 2, 3."""
         self.n += m
-        self.hits += len(lw)
-        if len(lw):
-            top = max(self.shift, float(lw.max()))
-            scale = math.exp(self.shift - top)
-            e = np.exp(lw - top)
-            self.s1 = self.s1 * scale + float(e.sum())
-            self.s2 = self.s2 * scale**2 + float(e @ e)
-            self.s3 = self.s3 * scale**3 + float((e * e) @ e)
+        self.hits += hits
+        if hits:
+            top = max(self.shift, shift)
+            old, new = math.exp(self.shift - top), math.exp(shift - top)
+            self.s1 = self.s1 * old + s1 * new
+            self.s2 = self.s2 * old**2 + s2 * new**2
+            self.s3 = self.s3 * old**3 + s3 * new**3
             self.shift = top
 
     def _moments(self):

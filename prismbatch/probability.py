@@ -44,21 +44,24 @@ Estimators, per query:
 ``method="auto"`` uses importance sampling where the nominal pose is separated and the linear
 estimate ``Phi(-|mu|)`` is below :data:`IMPORTANCE_BELOW`, plain Monte Carlo elsewhere.
 
-Samples are drawn in rounds, every round of every query evaluated together in batch ``collide``
-calls of at most :data:`SAMPLES_PER_CALL` samples. A pilot (:data:`FIRST_ROUND` samples, doubled
+Samples are drawn in rounds, every round of every query drawn, posed and tested for contact
+together in one compiled loop that stores nothing per sample (it runs at about the rate of
+``collide`` on ready-made poses; the draws are SplitMix64 streams and a ziggurat,
+:mod:`prismbatch._kernels.streams`). A pilot (:data:`FIRST_ROUND` samples, doubled
 until one collides) sizes the estimate with its normal interval, and the estimate is then formed
 from fresh samples only: :data:`PILOT_MARGIN` times as many as the pilot's relative error says
 are needed, then more rounds (at most doubling) until the relative error is met, the interval's
 upper end falls below :data:`NEGLIGIBLE` (p is then reported as 0, its float64 value, and counts
 as converged) or the budget is spent. Stopping on the very samples that are averaged favours low
 estimates with low variances; fresh samples after the pilot avoid most of it. Coverage of the
-95 % intervals over 2000 runs per case (``docs/methods/probability.md``): 94.7-95.6 % on twelve
+95 % intervals over 2000 runs per case (``docs/methods/probability.md``): 94.4-95.5 % on twelve
 cases (the known answers at p = 1e-2, 1e-4, 1e-6, isotropic rotation and translation noise on
-facing squares, triangles and 12-gons, tilted poses, noise on both bodies), mean 95.2 %; with
-random starts, spread 1.5 and the normal interval it was 92.9-95.2 %, mean 94.3 %, with 2.2-4.1
-times the samples. Query ``i`` draws from its own stream
-``SeedSequence(seed, spawn_key=(query_index[i],))``, so its result does not depend on the other
-queries, on how they are grouped or chunked, or on where they run.
+facing squares, triangles and 12-gons, tilted poses, noise on both bodies), 94.95 % +- 0.28 %
+pooled; with random starts, spread 1.5 and the normal interval it was 92.9-95.2 %, mean 94.3 %,
+with 2.2-4.1 times the samples. Query ``i`` draws from its own streams, keyed by
+``SeedSequence(seed, spawn_key=(query_index[i],))`` (sample ``u`` of a query from its own
+generator, seeded by the query's key and ``u``), so its result does not depend on the other
+queries, on how they are grouped, chunked or spread over threads, or on where they run.
 """
 
 from __future__ import annotations
@@ -70,12 +73,15 @@ from statistics import NormalDist
 import numpy as np
 
 from ._kernels.batch import use_parallel
-from ._kernels.probability import sample_parallel, sample_serial
+from ._kernels.jit import first_call
+from ._kernels.probability import count_parallel, count_serial, sample_parallel, sample_serial
+from ._kernels.streams import ZIGGURAT
 from .checks import as_real_array, check_flag, real_scalar
-from .importance import Tally, centres, design_points, design_starts, draw
+from .config import SUPPORTED_RANGE
+from .importance import DEFENSIVE, SPREAD, Tally, centres, design_points, design_starts
 from .poses import as_pose, broadcast_poses
 from .results import BatchResult
-from .shapes import Prism
+from .shapes import Prism, as_prism_set
 
 __all__ = ["collision_probability", "ProbabilityResult", "METHODS", "EXACT", "PLAIN", "IMPORTANCE"]
 
@@ -95,9 +101,12 @@ FIRST_ROUND = 1024
 #: The estimate's first draw is this many times what the pilot says it needs (fewer estimates then
 #: go on in further rounds, whose stopping biases the interval).
 PILOT_MARGIN = 1.5
-#: Samples evaluated per batch collide call at most (bounds memory; a query's larger round is
-#: drawn in pieces of this size, so results do not depend on how queries are grouped).
-SAMPLES_PER_CALL = 1 << 20
+#: Samples per task of the compiled sampling loop (a query's round is cut into tasks of this size,
+#: which threads share; each sample's draws depend only on its query and its index, so results
+#: do not depend on the cut or on how queries are grouped).
+TASK_SAMPLES = 4096
+#: Tasks per call of the sampling loop at most (bounds its scratch memory).
+MAX_TASKS = 1 << 14
 #: Default budget of samples per query.
 DEFAULT_MAX_SAMPLES = 1_000_000
 #: A provable upper bound of p below this is reported as p = 0 (method EXACT).
@@ -428,7 +437,9 @@ class _Run:
             converged[exact], how[exact] = True, EXACT
         qs = np.flatnonzero(noisy)
         seqs = {i: np.random.SeedSequence(seed, spawn_key=(int(keys[i]),)).spawn(2) for i in qs}
-        streams = {i: np.random.default_rng(seqs[i][1]) for i in qs}
+        stream_keys = np.zeros(n, np.uint64)  # each query's sampling stream (see _kernels.streams)
+        for i in qs:
+            stream_keys[i] = seqs[i][1].generate_state(1, np.uint64)[0]
         mix = {}
         if len(qs) and method != "plain":
             r0, g0 = self._linearise(qs, np.zeros((len(qs), self.k)))
@@ -454,9 +465,11 @@ class _Run:
             how[qs[use & (g0 > 0)]] = IMPORTANCE
         state = {int(i): Tally() for i in qs}
         pilot = {i: None for i in state}  # samples of the pilot, once it is over
+        drawn = dict.fromkeys(state, 0)  # samples drawn so far: where each query's next round starts
         todo = {i: min(FIRST_ROUND, max_samples) for i in state}
+        mixtures = self._packed(mix, how)
         while todo:
-            self._round(todo, streams, state, how, mix)
+            self._round(todo, stream_keys, drawn, state, mixtures)
             nxt = {}
             for i in todo:
                 st = state[i]
@@ -490,33 +503,62 @@ class _Run:
             p[i], low[i], high[i] = st.interval(self.z, how[i] == IMPORTANCE)
         return ProbabilityResult(p, low, high, samples, converged, how, hits, beta, int(seed), confidence, self.rel)
 
-    def _round(self, todo, streams, state, how, mix):
-        """Draw and evaluate one round of every query in ``todo`` (``{query: samples}``)."""
-        pieces = [
-            (i, min(SAMPLES_PER_CALL, m - s)) for i, m in sorted(todo.items()) for s in range(0, m, SAMPLES_PER_CALL)
-        ]
-        batch, size = [], 0
-        for j, (i, m) in enumerate(pieces):
-            batch.append((i, m))
-            size += m
-            if size >= SAMPLES_PER_CALL or j == len(pieces) - 1:
-                self._evaluate(batch, streams, state, how, mix)
-                batch, size = [], 0
+    def _packed(self, mix, how):
+        """The mixtures of the queries sampled by importance as the sampling loop takes them:
+        ``(start (n + 1,), mu (J, k), log pi (J,))``, query i's centres at ``start[i]:start[i + 1]``
+        (none for the others, which draw from the nominal distribution)."""
+        chosen = [i for i in range(self.n) if how[i] == IMPORTANCE and i in mix]
+        count = np.zeros(self.n + 1, np.int64)
+        for i in chosen:
+            count[i + 1] = len(mix[i][1])
+        mu = np.zeros((int(count.sum()), self.k))
+        lpi = np.zeros(len(mu))
+        start = np.cumsum(count)
+        for i in chosen:
+            mu[start[i] : start[i + 1]], lpi[start[i] : start[i + 1]] = mix[i][0], mix[i][1]
+        return start, mu, lpi
 
-    def _evaluate(self, batch, streams, state, how, mix):
-        zs, lws, query = [], [], []
-        for i, m in batch:
-            z, lw = draw(streams[i], m, self.k, mix[i] if how[i] == IMPORTANCE else None)
-            zs.append(z)
-            lws.append(lw)
-            query.append(np.full(m, i, np.int64))
-        z, query = (zs[0], query[0]) if len(zs) == 1 else (np.concatenate(zs), np.concatenate(query))
-        hit = self.col.collide(*self.sample_poses(query, z), parallel=self.parallel).hit
-        start = 0
-        for (i, m), lw in zip(batch, lws):
-            h = hit[start : start + m]
-            state[i].add(m, lw[h])
-            start += m
+    def _round(self, todo, keys, drawn, state, mixtures):
+        """Draw and test one round of every query in ``todo`` (``{query: samples}``), adding it to
+        the query's tally; ``drawn[query]`` (its samples so far) moves on."""
+        tasks = [
+            (i, drawn[i] + s, min(TASK_SAMPLES, m - s))
+            for i, m in sorted(todo.items())
+            for s in range(0, m, TASK_SAMPLES)
+        ]
+        for i, m in todo.items():
+            drawn[i] += m
+        for g in range(0, len(tasks), MAX_TASKS):
+            part = tasks[g : g + MAX_TASKS]
+            query, start, count = (np.array(c, dtype=np.int64) for c in zip(*part))
+            hits, shift, sums = self._count(query, start, count, keys, mixtures)
+            for (i, _, m), h, sh, su in zip(part, hits.tolist(), shift.tolist(), sums.tolist()):
+                state[i].add_sums(m, h, sh, *su)
+
+    def _count(self, query, start, count, keys, mixtures):
+        """The sampling loop on tasks ``(query, start, count)``: ``(hits, shift, sums)`` per task."""
+        col, T = self.col, len(query)
+        dt = col.dtype
+        a = as_prism_set(col.shape_a, "shape_a", dt)[0].kernel_arrays(dt)
+        b = as_prism_set(col.shape_b, "shape_b", dt)[0].kernel_arrays(dt)
+        max_magnitude = SUPPORTED_RANGE[dt.name][1]
+        scratch = np.empty((T, self.k)), np.empty((T, 3), dt), np.empty((T, 3, 3), dt), np.empty((T, 3), dt)
+        scratch += (np.empty((T, 3, 3), dt),)
+        hits, shift, sums, bad = np.empty(T, np.int64), np.empty(T), np.empty((T, 3)), np.empty(T, np.int64)
+        parallel = use_parallel(self.parallel, int(count.sum()))
+        kern = count_parallel if parallel else count_serial
+        # fmt: off
+        first_call((kern, dt), kern, a.floats, a.ints, b.floats, b.ints, query, start, count, keys, self.L,
+                   *self.poses, *mixtures, self.active, DEFENSIVE, SPREAD, *ZIGGURAT, col.rtol, col.atol,
+                   float(np.finfo(dt).eps), max_magnitude, *scratch, hits, shift, sums, bad)
+        # fmt: on
+        if (bad >= 0).any():
+            t = int(np.argmax(bad >= 0))
+            raise ValueError(
+                f"query {int(query[t])}: a sampled position lies beyond {max_magnitude:g} from the origin "
+                f"(sample {int(start[t] + bad[t])}); the pose noise is too large for {dt.name} coordinates"
+            )
+        return hits, shift, sums
 
 
 def _through_exp(theta, v):

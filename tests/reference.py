@@ -21,9 +21,12 @@ Contents
 * ``ref_point_in_polygon``, ``ref_polygon_distance``,
   ``ref_halfline_distance``, ``ref_strip_distance``: brute-force 2D
   references for the planar sub-problems.
+* ``StreamReference``: the random draws of one sample of the compiled sampling loops.
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
@@ -213,3 +216,47 @@ def ref_strip_distance(poly, p1, p2, d) -> float:
     d = np.asarray(d, dtype=float).reshape(2)
     T = _truncation_length(poly, [p1, p2], d)
     return ref_polygon_distance(poly, np.array([p1, p2, p1 + T * d, p2 + T * d]))
+
+
+class StreamReference:
+    """Plain-Python SplitMix64 and ziggurat draws of one sample (``prismbatch._kernels.streams``),
+    on Python integers masked to 64 bits, written from the papers' descriptions for the tests.
+
+    ``StreamReference(key, u)`` is the generator of sample ``u`` of stream ``key``; the
+    ziggurat's tables come from the package (the tests check them on their own).
+    """
+
+    MASK = (1 << 64) - 1
+    GOLDEN = 0x9E3779B97F4A7C15
+
+    @classmethod
+    def mix(cls, x):
+        x = ((x ^ (x >> 30)) * 0xBF58476D1CE4E5B9) & cls.MASK
+        x = ((x ^ (x >> 27)) * 0x94D049BB133111EB) & cls.MASK
+        return x ^ (x >> 31)
+
+    def __init__(self, key, u):
+        self.state = self.mix((int(key) + (int(u) + 1) * self.GOLDEN) & self.MASK)
+
+    def bits(self):
+        self.state = (self.state + self.GOLDEN) & self.MASK
+        return self.mix(self.state)
+
+    def uniform(self):
+        return ((self.bits() >> 11) + 0.5) / 2.0**53
+
+    def normal(self, tables):
+        k, w, f, r = tables
+        while True:
+            bits = self.bits()
+            i, negative, a = bits & 0xFF, (bits >> 8) & 1, (bits >> 9) & ((1 << 52) - 1)
+            x = -(a * float(w[i])) if negative else a * float(w[i])
+            if a < int(k[i]):
+                return x
+            if i == 0:
+                while True:
+                    xx = -math.log(self.uniform()) / r
+                    if -2.0 * math.log(self.uniform()) > xx * xx:
+                        return -(r + xx) if negative else r + xx
+            elif (f[i - 1] - f[i]) * self.uniform() + f[i] < math.exp(-0.5 * x * x):
+                return x

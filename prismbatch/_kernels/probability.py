@@ -1,16 +1,28 @@
 """Sampled poses for :mod:`prismbatch.probability`: ``p = p0 + dp``, ``R = exp([dtheta]x) R0``.
 
-One loop over samples, compiled serial and parallel (:func:`~prismbatch._kernels.jit.twins`);
-sample s forms the noise ``x = L[q] z[s]`` of its query ``q = query[s]`` (b's six components
-first, then a's when there are twelve), perturbs the query's nominal poses and writes only
-row s of the outputs.
+Two loops, each compiled serial and parallel (:func:`~prismbatch._kernels.jit.twins`):
+
+- :data:`sample_serial` / :data:`sample_parallel`: sample s forms the noise ``x = L[q] z[s]``
+  of its query ``q = query[s]`` (b's six components first, then a's when there are twelve),
+  perturbs the query's nominal poses and writes only row s of the outputs (the search for
+  design points, which needs the poses);
+- :data:`count_serial` / :data:`count_parallel`: the estimate's samples, drawn, posed and
+  tested for contact in one pass with nothing stored per sample (it runs at about the rate
+  of ``collide`` on ready-made poses, not at that of NumPy's generator and batches of
+  arrays). Task t draws samples ``start[t] .. start[t] + count[t] - 1`` of query
+  ``query[t]`` from the query's stream (:mod:`~prismbatch._kernels.streams`), so the result
+  does not depend on how the samples are cut into tasks or spread over threads; it writes
+  only its own slots.
 """
 
 import math
 
+import numpy as np
 from numba import prange
 
+from .batch import pair_world, unpack
 from .jit import jit, twins
+from .streams import normal, sample_state, uniform
 
 
 @jit(inline="always", error_model="numpy")
@@ -27,11 +39,12 @@ def _perturb(L, z, q, s, row, pos0, rot0, pos, rot):
         ty += L[q, row + 4, c] * zc
         tz += L[q, row + 5, c] * zc
     t = math.sqrt(tx * tx + ty * ty + tz * tz)
-    # Rodrigues: E = I + a K + b K^2, K = [theta]x; b = (1 - cos t) / t^2 written with
-    # sin(t / 2) so that small angles lose no digits.
+    # Rodrigues: E = I + a K + b K^2, K = [theta]x, a = sin(t) / t, b = (1 - cos t) / t^2, both
+    # from the sine and cosine of t / 2 (one sincos; small angles lose no digits).
     if t > 0.0:
-        a = math.sin(t) / t
-        h = math.sin(0.5 * t) / (0.5 * t)
+        sh, ch = math.sin(0.5 * t), math.cos(0.5 * t)
+        h = sh / (0.5 * t)
+        a = h * ch
         b = 0.5 * h * h
     else:
         a, b = 1.0, 0.5
@@ -67,3 +80,174 @@ def _sample_loop(query, L, z, pos_a0, rot_a0, pos_b0, rot_b0, pos_a, rot_a, pos_
 # No reference counting: the loop allocates nothing, and with it every array passed to the inlined
 # helper costs atomic increments per sample (see jit.jit).
 sample_serial, sample_parallel = twins(_sample_loop, "sample_poses", error_model="numpy", refcounts=False)
+
+
+@jit(inline="always", error_model="numpy")
+def _logaddexp(x, y):
+    m = max(x, y)
+    if m == -math.inf:
+        return m
+    return m + math.log1p(math.exp(-abs(x - y)))
+
+
+@jit(inline="always", error_model="numpy")
+def _draw_proposal(state, z, t, q, j0, j1, mu, lpi, active, defensive, spread, log_spread_n):
+    """Move the standard normals ``z[t]`` to a draw of query q's defensive mixture and return
+    ``(log phi(z) / q(z), state)``.
+
+    The mixture is ``defensive N(0, I) + (1 - defensive) sum_j pi_j N(mu_j, S)`` over centres
+    ``j0 .. j1 - 1`` (``log pi_j = lpi[j]``), ``S`` ``spread^2`` on the query's active noise
+    components and 1 on the others (which then cancel from the weight); its weights are at
+    most ``1 / defensive``. The tests compare this with a NumPy form of the same formulas.
+    """
+    k = z.shape[1]
+    w, state = uniform(state)
+    if w >= defensive:  # centre j by its weight; the nominal N(0, I) below ``defensive``
+        acc, j = defensive, j0
+        while j < j1 - 1:
+            acc += (1.0 - defensive) * math.exp(lpi[j])
+            if w < acc:
+                break
+            j += 1
+        for c in range(k):
+            if active[q, c]:
+                z[t, c] = mu[j, c] + spread * z[t, c]
+    zz = 0.0
+    for c in range(k):
+        if active[q, c]:
+            zz += z[t, c] * z[t, c]
+    lr = -math.inf
+    for j in range(j0, j1):
+        d2 = 0.0
+        for c in range(k):
+            if active[q, c]:
+                e = z[t, c] - mu[j, c]
+                d2 += e * e
+        lr = _logaddexp(lr, lpi[j] - 0.5 * d2 / (spread * spread))
+    lr += 0.5 * zz - log_spread_n
+    return -_logaddexp(math.log(defensive), math.log1p(-defensive) + lr), state
+
+
+def _count_loop(
+    a_floats,
+    a_ints,
+    b_floats,
+    b_ints,
+    task_query,
+    task_start,
+    task_count,
+    keys,
+    L,
+    pos_a0,
+    rot_a0,
+    pos_b0,
+    rot_b0,
+    mix_start,
+    mu,
+    lpi,
+    active,
+    defensive,
+    spread,
+    zk,
+    zw,
+    zf,
+    zr,
+    rtol,
+    atol,
+    eps,
+    max_magnitude,
+    z,
+    pos_a,
+    rot_a,
+    pos_b,
+    rot_b,
+    hits,
+    shift,
+    sums,
+    bad,
+):
+    """Task t: ``hits[t]`` of ``task_count[t]`` samples and the power sums ``sums[t, 0:3]`` of the
+    hits' weights ``exp(lw - shift[t])`` (weights 1 for a query with no mixture, ``mix_start[q]
+    == mix_start[q + 1]``). ``z`` and the pose arrays are scratch, one row per task; ``bad[t]``
+    is the first sample whose position left ``max_magnitude`` (-1 if none)."""
+    avx, avy, aeang, aetab, avang, ainv, aoff, arad, acen = unpack(a_floats, a_ints)
+    bvx, bvy, beang, betab, _, _, boff, brad, bcen = unpack(b_floats, b_ints)
+    k = z.shape[1]
+    for tp in prange(task_query.shape[0]):
+        t = np.int64(tp)
+        q = task_query[t]
+        j0, j1 = mix_start[q], mix_start[q + 1]
+        n_active = 0
+        for c in range(k):
+            n_active += active[q, c]
+        log_spread_n = n_active * math.log(spread)
+        for j in range(3):  # a's nominal pose, for six-component noise
+            pos_a[t, j] = pos_a0[q, j]
+            for i in range(3):
+                rot_a[t, i, j] = rot_a0[q, i, j]
+        count, top, s1, s2, s3 = 0, -math.inf, 0.0, 0.0, 0.0
+        bad[t] = -1
+        for s in range(task_count[t]):
+            state = sample_state(keys[q], np.uint64(task_start[t] + s))
+            for c in range(k):  # components that move nothing are not drawn (they change no pose or weight)
+                if active[q, c]:
+                    z[t, c], state = normal(state, zk, zw, zf, zr)
+                else:
+                    z[t, c] = 0.0
+            lw = 0.0
+            if j1 > j0:
+                lw, state = _draw_proposal(state, z, t, q, j0, j1, mu, lpi, active, defensive, spread, log_spread_n)
+            _perturb(L, z, q, t, 0, pos_b0, rot_b0, pos_b, rot_b)
+            if k == 12:
+                _perturb(L, z, q, t, 6, pos_a0, rot_a0, pos_a, rot_a)
+            far = False
+            for j in range(3):
+                far |= not (abs(pos_a[t, j]) <= max_magnitude and abs(pos_b[t, j]) <= max_magnitude)
+            if far:
+                bad[t] = s
+                break
+            hit = pair_world(
+                avx,
+                avy,
+                aeang,
+                aetab,
+                avang,
+                ainv,
+                aoff,
+                arad,
+                acen,
+                0,
+                bvx,
+                bvy,
+                beang,
+                betab,
+                boff,
+                brad,
+                bcen,
+                0,
+                pos_a[t],
+                rot_a[t],
+                pos_b[t],
+                rot_b[t],
+                rtol,
+                atol,
+                eps,
+                None,
+            )[0]
+            if hit:
+                count += 1
+                if lw > top:  # a running shift keeps the sums' relative error for tiny weights
+                    scale = math.exp(top - lw)
+                    s1, s2, s3, top = s1 * scale, s2 * scale * scale, s3 * scale * scale * scale, lw
+                e = math.exp(lw - top)
+                s1 += e
+                s2 += e * e
+                s3 += e * e * e
+        hits[t] = count
+        shift[t] = top
+        sums[t, 0] = s1
+        sums[t, 1] = s2
+        sums[t, 2] = s3
+
+
+count_serial, count_parallel = twins(_count_loop, "count_hits", error_model="numpy", refcounts=False)

@@ -15,9 +15,12 @@ from scipy.spatial.transform import Rotation
 
 import prismbatch as pb
 from prismbatch._kernels.probability import sample_serial
+from prismbatch._kernels.streams import ZIGGURAT
 from prismbatch.collide import pair_scale_tolerance
-from prismbatch.importance import centres, design_points, design_starts, hall_interval
-from prismbatch.probability import EXACT, IMPORTANCE, PLAIN, collision_probability
+from prismbatch.importance import DEFENSIVE, SPREAD, centres, design_points, design_starts, hall_interval
+from prismbatch.probability import EXACT, IMPORTANCE, PLAIN, _Run, collision_probability
+
+from reference import StreamReference
 
 SQ = pb.Prism.regular(4, 1.0)  # unit-circumradius squares facing each other
 DOWN = np.diag([1.0, -1.0, -1.0])
@@ -75,6 +78,66 @@ def test_sample_kernel_matches_reference(k):
         xa = x[6:] if k == 12 else np.zeros(6)
         np.testing.assert_allclose(out[0][s], pos_a0[q[s]] + xa[:3], atol=1e-14)
         np.testing.assert_allclose(out[1][s], expm_reference(xa[3:]) @ rot_a0[q[s]], atol=1e-12)
+
+
+def _reference_sample(key, u, L, active, mix, poses):
+    """One sample of the sampling loop in plain Python: ``(pos_a, rot_a, pos_b, rot_b, log weight)``."""
+    k = L.shape[1]
+    gen = StreamReference(key, u)
+    z = np.array([gen.normal(ZIGGURAT) if active[c] else 0.0 for c in range(k)])
+    lw = 0.0
+    if mix is not None:
+        mu, lpi = mix
+        w = gen.uniform()
+        if w >= DEFENSIVE:
+            j = int(np.searchsorted(DEFENSIVE + (1 - DEFENSIVE) * np.cumsum(np.exp(lpi))[:-1], w, side="right"))
+            z = np.where(active, mu[j] + SPREAD * z, z)
+        za = z * active
+        d2 = ((za[None] - mu) ** 2).sum(1)
+        comp = lpi - 0.5 * d2 / SPREAD**2 - active.sum() * math.log(SPREAD)
+        lr = np.logaddexp.reduce(comp) + 0.5 * (za @ za)
+        lw = -np.logaddexp(math.log(DEFENSIVE), math.log1p(-DEFENSIVE) + lr)
+    x = L @ z
+    pa, ra, pb, rb = poses
+    xa = x[6:] if k == 12 else np.zeros(6)
+    return pa + xa[:3], expm_reference(xa[3:]) @ ra, pb + x[:3], expm_reference(x[3:6]) @ rb, lw
+
+
+@pytest.mark.parametrize("k", [6, 12])
+def test_count_kernel_matches_plain_reference(k):
+    """The compiled sampling loop (draws, mixture, weights, poses, contact) against the same
+    draws made in plain Python, posed by the power-series exponential and tested by collide."""
+    rng = np.random.default_rng(40 + k)
+    A, B = pb.Prism.regular(5, 1.0), pb.Prism.regular(7, 0.8)
+    col = pb.Collider(A, B)
+    nq = 2
+    pos_b = np.array([[0, 0, 0.15], [0.3, 0, 0.25]])
+    poses = (np.zeros((nq, 3)), np.stack([DOWN] * nq), pos_b, np.stack([np.eye(3)] * nq))
+    L = 0.12 * np.eye(k)[None] + 0.02 * rng.normal(size=(nq, k, k))
+    L[:, :, 4] = 0.0  # a noise component that moves nothing: not drawn
+    run = _Run(col, poses, L, 1.96, 0.1, False)
+    mu = rng.normal(size=(2, k)) * run.active[0]
+    lpi = np.log([0.3, 0.7])
+    how = np.array([IMPORTANCE, PLAIN])
+    mixtures = run._packed({0: (mu, lpi, run.active[0])}, how)
+    keys = np.array([2**64 - 5, 12345], dtype=np.uint64)
+    query, start, count = np.array([0, 1, 0]), np.array([0, 10, 1000]), np.array([150, 200, 150])
+    hits, shift, sums = run._count(query, start, count, keys, mixtures)
+    for t in range(3):
+        q = query[t]
+        lws = []
+        for u in range(start[t], start[t] + count[t]):
+            mix = (mu, lpi) if q == 0 else None
+            *p, lw = _reference_sample(keys[q], u, L[q], run.active[q], mix, [x[q] for x in poses])
+            if col.collide(*p).hit[0]:
+                lws.append(lw)
+        lws = np.array(lws)
+        assert hits[t] == len(lws) > 10
+        assert len(lws) < count[t]
+        want = [np.exp(p * lws).sum() for p in (1, 2, 3)]
+        np.testing.assert_allclose(np.exp(np.arange(1, 4) * shift[t]) * sums[t], want, rtol=1e-12)
+        if q == 1:
+            assert shift[t] == 0.0 and sums[t].tolist() == [len(lws)] * 3
 
 
 @pytest.mark.parametrize("height, method", [(0.1, PLAIN), (0.3719, IMPORTANCE), (0.47534, IMPORTANCE)])
@@ -175,6 +238,15 @@ def test_reproducible_and_independent_of_grouping():
     r4 = collision_probability(*args)
     r5 = collision_probability(*args, seed=r4.seed)
     np.testing.assert_array_equal(r4.p, r5.p)
+    threads = collision_probability(*args, seed=11, parallel=True)  # samples shared out over threads
+    for k, v in r1.columns().items():
+        np.testing.assert_array_equal(v, threads.columns()[k])
+
+
+def test_noise_beyond_the_coordinate_range_is_an_error():
+    cov = np.diag([1e220, 1e220, 1e220, 0.0, 0.0, 0.0])
+    with pytest.raises(ValueError, match=r"query 0: a sampled position lies beyond .* pose noise is too large"):
+        collision_probability(SQ, SQ, np.zeros(3), DOWN, [0, 0, 0.5], np.eye(3), cov, method="plain", seed=1)
 
 
 def test_collider_method_matches_function():
