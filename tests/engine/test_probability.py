@@ -447,3 +447,16 @@ def test_probabilities_near_zero_and_one():
     assert r.method[0] == PLAIN and within(r, p) and r.high[0] <= 1.0
     r, p = known(-0.65, seed=1)  # 1 - 1e-10: every sample collides
     assert r.p[0] == 1.0 and r.high[0] == 1.0 and r.low[0] > 0.99 and r.converged[0]
+
+
+def test_float32_collider_samples_the_same_streams():
+    """A float32 Collider draws the same samples (its poses rounded to float32): its hits differ
+    from float64's only for samples within float32 rounding of contact."""
+    cov = np.diag([0.05**2, 0.05**2, 0.1**2, 0.01, 0.01, 0.1**2])
+    kw = dict(cov_a=0.5 * cov, seed=3, method="plain", rel_error=0.02)
+    r64, r32 = (
+        pb.Collider(SQ, SQ, dtype=dt).collision_probability(np.zeros(3), DOWN, [0, 0, 0.1], np.eye(3), cov, **kw)
+        for dt in (np.float64, np.float32)
+    )
+    assert r64.samples[0] == r32.samples[0] > 1000
+    assert r32.hits[0] != 0 and abs(int(r32.hits[0]) - int(r64.hits[0])) <= 2
