@@ -196,6 +196,42 @@ def pair_world(
     )
 
 
+@jit(inline="always")
+def pair_of_sets(a, b, ka, kb, Pa, Ra, Pb, Rb, rtol, atol, eps, trace):
+    """:func:`pair_world` for prism ka of set a and prism kb of set b, each set the tuple of :func:`unpack`."""
+    # (unpacked by name: Numba's inliner takes no star arguments)
+    ax, ay, aea, aet, ava, ainv, aoff, arad, acen = a
+    bx, by, bea, bet, _, _, boff, brad, bcen = b
+    return pair_world(
+        ax,
+        ay,
+        aea,
+        aet,
+        ava,
+        ainv,
+        aoff,
+        arad,
+        acen,
+        ka,
+        bx,
+        by,
+        bea,
+        bet,
+        boff,
+        brad,
+        bcen,
+        kb,
+        Pa,
+        Ra,
+        Pb,
+        Rb,
+        rtol,
+        atol,
+        eps,
+        trace,
+    )
+
+
 def _collide_loop(
     a_floats,
     a_ints,
@@ -213,37 +249,23 @@ def _collide_loop(
     case_out,
     contact_out,
 ):
-    avx, avy, aeang, aetab, avang, ainv, aoff, arad, acen = unpack(a_floats, a_ints)
-    bvx, bvy, beang, betab, _, _, boff, brad, bcen = unpack(b_floats, b_ints)
+    a = unpack(a_floats, a_ints)
+    b = unpack(b_floats, b_ints)
     n = hit_out.shape[0]
     npa = pos_a.shape[0]
     nra = rot_a.shape[0]
     npb = pos_b.shape[0]
     nrb = rot_b.shape[0]
-    nsa = arad.shape[0]
-    nsb = brad.shape[0]
+    nsa = a[7].shape[0]  # radii: one per prism
+    nsb = b[7].shape[0]
     for ip in prange(n):
         # prange's index is unsigned; mixing it with int64 would give floats.
         i = np.int64(ip)
         # A batch of one broadcasts: min() picks row 0 (sizes are 1 or n).
-        hit, case, cx, cy, cz = pair_world(
-            avx,
-            avy,
-            aeang,
-            aetab,
-            avang,
-            ainv,
-            aoff,
-            arad,
-            acen,
+        hit, case, cx, cy, cz = pair_of_sets(
+            a,
+            b,
             min(i, nsa - 1),
-            bvx,
-            bvy,
-            beang,
-            betab,
-            boff,
-            brad,
-            bcen,
             min(i, nsb - 1),
             pos_a[min(i, npa - 1)],
             rot_a[min(i, nra - 1)],
@@ -434,36 +456,8 @@ def _collide_pair(
     problem, val = pair_problem(Pa, Ra, Pb, Rb, ortho_tol_a, ortho_tol_b, max_magnitude)
     if problem:
         return problem, val, False, 0, nan, nan, nan
-    avx, avy, aeang, aetab, avang, ainv, aoff, arad, acen = unpack(a_floats, a_ints)
-    bvx, bvy, beang, betab, _, _, boff, brad, bcen = unpack(b_floats, b_ints)
-    hit, case, cx, cy, cz = pair_world(
-        avx,
-        avy,
-        aeang,
-        aetab,
-        avang,
-        ainv,
-        aoff,
-        arad,
-        acen,
-        0,
-        bvx,
-        bvy,
-        beang,
-        betab,
-        boff,
-        brad,
-        bcen,
-        0,
-        Pa,
-        Ra,
-        Pb,
-        Rb,
-        rtol,
-        atol,
-        eps,
-        None,
-    )
+    a, b = unpack(a_floats, a_ints), unpack(b_floats, b_ints)
+    hit, case, cx, cy, cz = pair_of_sets(a, b, 0, 0, Pa, Ra, Pb, Rb, rtol, atol, eps, None)
     return 0, 0.0, hit, case, cx, cy, cz
 
 

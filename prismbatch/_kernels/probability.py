@@ -20,7 +20,7 @@ import math
 import numpy as np
 from numba import prange
 
-from .batch import pair_world, unpack
+from .batch import pair_of_sets, unpack
 from .jit import jit, twins
 from .streams import normal, sample_state, uniform
 
@@ -170,8 +170,7 @@ def _count_loop(
     hits' weights ``exp(lw - shift[t])`` (weights 1 for a query with no mixture, ``mix_start[q]
     == mix_start[q + 1]``). ``z`` and the pose arrays are scratch, one row per task; ``bad[t]``
     is the first sample whose position left ``max_magnitude`` (-1 if none)."""
-    avx, avy, aeang, aetab, avang, ainv, aoff, arad, acen = unpack(a_floats, a_ints)
-    bvx, bvy, beang, betab, _, _, boff, brad, bcen = unpack(b_floats, b_ints)
+    a, b = unpack(a_floats, a_ints), unpack(b_floats, b_ints)
     k = z.shape[1]
     for tp in prange(task_query.shape[0]):
         t = np.int64(tp)
@@ -206,34 +205,7 @@ def _count_loop(
             if far:
                 bad[t] = s
                 break
-            hit = pair_world(
-                avx,
-                avy,
-                aeang,
-                aetab,
-                avang,
-                ainv,
-                aoff,
-                arad,
-                acen,
-                0,
-                bvx,
-                bvy,
-                beang,
-                betab,
-                boff,
-                brad,
-                bcen,
-                0,
-                pos_a[t],
-                rot_a[t],
-                pos_b[t],
-                rot_b[t],
-                rtol,
-                atol,
-                eps,
-                None,
-            )[0]
+            hit = pair_of_sets(a, b, 0, 0, pos_a[t], rot_a[t], pos_b[t], rot_b[t], rtol, atol, eps, None)[0]
             if hit:
                 count += 1
                 if lw > top:  # a running shift keeps the sums' relative error for tiny weights
