@@ -555,8 +555,9 @@ class _Run:
         if (bad >= 0).any():
             t = int(np.argmax(bad >= 0))
             raise ValueError(
-                f"query {int(query[t])}: a sampled position lies beyond {max_magnitude:g} from the origin "
-                f"(sample {int(start[t] + bad[t])}); the pose noise is too large for {dt.name} coordinates"
+                f"query {int(query[t])}: a sampled position lies beyond {max_magnitude:g} from the origin or a "
+                f"sampled rotation is not finite (sample {int(start[t] + bad[t])}); the pose noise is too large "
+                f"for {dt.name} coordinates"
             )
         return hits, shift, sums
 

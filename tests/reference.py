@@ -243,7 +243,7 @@ class StreamReference:
         return self.mix(self.state)
 
     def uniform(self):
-        return ((self.bits() >> 11) + 0.5) / 2.0**53
+        return ((self.bits() >> 12) + 0.5) / 2.0**52
 
     def normal(self, tables):
         k, w, f, r = tables

@@ -169,7 +169,8 @@ def _count_loop(
     """Task t: ``hits[t]`` of ``task_count[t]`` samples and the power sums ``sums[t, 0:3]`` of the
     hits' weights ``exp(lw - shift[t])`` (weights 1 for a query with no mixture, ``mix_start[q]
     == mix_start[q + 1]``). ``z`` and the pose arrays are scratch, one row per task; ``bad[t]``
-    is the first sample whose position left ``max_magnitude`` (-1 if none)."""
+    is the first sample whose position left ``max_magnitude`` or whose rotation is not
+    finite (-1 if none)."""
     a, b = unpack(a_floats, a_ints), unpack(b_floats, b_ints)
     k = z.shape[1]
     for tp in prange(task_query.shape[0]):
@@ -199,10 +200,14 @@ def _count_loop(
             _perturb(L, z, q, t, 0, pos_b0, rot_b0, pos_b, rot_b)
             if k == 12:
                 _perturb(L, z, q, t, 6, pos_a0, rot_a0, pos_a, rot_a)
-            far = False
+            # Positions beyond the range, or a rotation turned NaN (a rotation vector whose length
+            # overflows): collide's input checks are not run here, so the loop makes its own.
+            unusable = False
             for j in range(3):
-                far |= not (abs(pos_a[t, j]) <= max_magnitude and abs(pos_b[t, j]) <= max_magnitude)
-            if far:
+                unusable |= not (abs(pos_a[t, j]) <= max_magnitude and abs(pos_b[t, j]) <= max_magnitude)
+                for i in range(3):
+                    unusable |= not (abs(rot_a[t, i, j]) <= 2.0 and abs(rot_b[t, i, j]) <= 2.0)
+            if unusable:
                 bad[t] = s
                 break
             hit = pair_of_sets(a, b, 0, 0, pos_a[t], rot_a[t], pos_b[t], rot_b[t], rtol, atol, eps, None)[0]

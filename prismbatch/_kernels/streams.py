@@ -4,10 +4,10 @@ Sample ``u`` of a stream with 64-bit key ``key`` has its own generator, SplitMix
 Lea and Flood 2014, the output function of Java's ``SplittableRandom``), seeded with the
 ``u``-th output of the SplitMix64 stream that starts at ``key``: what a sample draws depends
 only on ``(key, u)``, so a loop can hand samples to threads in any way and a run can stop and
-go on (the counter ``u`` says where). Draws in ``(0, 1)`` take the top 53 bits; standard
-normals come from the 256-layer ziggurat of Marsaglia and Tsang (2000) with NumPy's tables and
-its use of the bits (layer from the low 8, sign from the next, 52 bits for the abscissa), the
-tail by Marsaglia's (1964) exact method. State travels as a ``uint64`` value:
+go on (the counter ``u`` says where). Draws in ``(0, 1)`` take the top 52 bits; standard
+normals come from the 256-layer ziggurat of Marsaglia and Tsang (2000), its tables computed from
+their r and v as NumPy's are, with NumPy's use of the bits (layer from the low 8, sign from the
+next, 52 bits for the abscissa), the tail by Marsaglia's (1964) exact method. State travels as a ``uint64`` value:
 ``value, state = draw(state, ...)``.
 """
 
@@ -24,7 +24,7 @@ GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 _M1 = np.uint64(0xBF58476D1CE4E5B9)
 _M2 = np.uint64(0x94D049BB133111EB)
 _S30, _S27, _S31 = np.uint64(30), np.uint64(27), np.uint64(31)
-_ONE, _LOW8, _S8, _S11 = np.uint64(1), np.uint64(0xFF), np.uint64(8), np.uint64(11)
+_ONE, _LOW8, _S8, _S12 = np.uint64(1), np.uint64(0xFF), np.uint64(8), np.uint64(12)
 _MANT52 = np.uint64(0x000FFFFFFFFFFFFF)
 
 
@@ -51,13 +51,14 @@ def next_u64(state):
 
 @jit(inline="always")
 def uniform(state):
-    """``(U, state)`` with U uniform in (0, 1): never 0, so its logarithm is finite."""
+    """``(U, state)`` with U uniform in (0, 1), both ends excluded: the midpoints of 2^52 cells
+    (53 bits would round the top one up to 1.0)."""
     x, state = next_u64(state)
-    return ((x >> _S11) + 0.5) * (1.0 / 9007199254740992.0), state
+    return ((x >> _S12) + 0.5) * (1.0 / 4503599627370496.0), state
 
 
 def _ziggurat_tables():
-    """``(k, w, f, r)``: NumPy's 256-layer tables of the standard normal's ziggurat.
+    """``(k, w, f, r)``: the 256-layer tables of the standard normal's ziggurat, from r and v.
 
     ``w[i] 2^52`` is layer i's right edge ``x_i`` (``x_0`` the base strip's width ``v / f(r)``),
     ``k[i]`` the 52-bit abscissa below which a point of layer i is inside the layer above

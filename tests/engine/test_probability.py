@@ -243,10 +243,15 @@ def test_reproducible_and_independent_of_grouping():
         np.testing.assert_array_equal(v, threads.columns()[k])
 
 
-def test_noise_beyond_the_coordinate_range_is_an_error():
-    cov = np.diag([1e220, 1e220, 1e220, 0.0, 0.0, 0.0])
+@pytest.mark.parametrize(
+    "var",
+    [[1e220, 1e220, 1e220, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.7e308, 0.0, 0.0]],
+    ids=["positions beyond the range", "rotation vector overflowing"],
+)
+def test_noise_beyond_the_coordinate_range_is_an_error(var):
+    # the second: |dtheta|^2 overflows for |z| > 1.03, and the turn comes out NaN
     with pytest.raises(ValueError, match=r"query 0: a sampled position lies beyond .* pose noise is too large"):
-        collision_probability(SQ, SQ, np.zeros(3), DOWN, [0, 0, 0.5], np.eye(3), cov, method="plain", seed=1)
+        collision_probability(SQ, SQ, np.zeros(3), DOWN, [0, 0, 0.2], np.eye(3), np.diag(var), method="plain", seed=1)
 
 
 def test_collider_method_matches_function():
