@@ -14,9 +14,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._kernels.batch import use_parallel
+from ._kernels.batch import use_parallel, work_blocks
 from ._kernels.distance import (
     EPA_DEPTH,
+    EPA_ROOM,
     EPA_STOPPED,
     FLAT,
     GJK_GAP,
@@ -26,6 +27,9 @@ from ._kernels.distance import (
     TOUCHING,
     distance_parallel,
     distance_serial,
+    rerun_parallel,
+    rerun_serial,
+    workspace,
 )
 from ._kernels.distance_pair import distance_pair
 from ._kernels.jit import first_call
@@ -238,10 +242,17 @@ def signed_distance(a_arrays, b_arrays, n, pos_a, rot_a, pos_b, rot_b, *, rtol, 
     solver = np.empty(n, dtype=np.int8)
     k = n if witness else 0  # status-only calls write no witnesses
     normal, point_a, point_b = np.empty((k, 3)), np.empty((k, 3)), np.empty((k, 3))
-    kern = distance_parallel if use_parallel(parallel, n) else distance_serial
+    parallel = use_parallel(parallel, n)
+    kern = distance_parallel if parallel else distance_serial
+    work = workspace(work_blocks(n, parallel), EPA_ROOM[0])  # GJK's and EPA's, some 150 kB a block
     args = (a_arrays.floats, a_arrays.ints, b_arrays.floats, b_arrays.ints, (pos_a, rot_a, pos_b, rot_b), float(rtol))
-    args += (float(atol), float(np.finfo(dtype).eps), bool(witness), (dist, status, tol, solver))
-    first_call((kern, np.dtype(dtype)), kern, *args, (normal, point_a, point_b))
+    args += (float(atol), float(np.finfo(dtype).eps), bool(witness))
+    outs = ((dist, status, tol, solver), (normal, point_a, point_b))
+    first_call((kern, np.dtype(dtype)), kern, *args, work, *outs)
+    again = np.flatnonzero(solver == EPA_STOPPED)  # EPA out of the batch's room: more room, rarely needed
+    if again.size:
+        kern = rerun_parallel if use_parallel(parallel, again.size) else rerun_serial
+        first_call((kern, np.dtype(dtype)), kern, *args, again, *outs)
     if not witness:
         return DistanceResult(dist, status, tol, solver)
     return DistanceResult(dist, status, tol, solver, normal, point_a, point_b)

@@ -27,9 +27,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._kernels.batch import use_parallel
+from ._kernels.batch import use_parallel, work_blocks
+from ._kernels.distance import EPA_ROOM, workspace
 from ._kernels.jit import first_call
-from ._kernels.motion import CLEAR, CONTACT, UNDECIDED, toi_parallel, toi_serial
+from ._kernels.motion import (
+    CLEAR,
+    CONTACT,
+    RERUN,
+    UNDECIDED,
+    toi_parallel,
+    toi_rerun_parallel,
+    toi_rerun_serial,
+    toi_serial,
+)
 from .collide import collider_for
 from .results import BatchResult
 
@@ -273,11 +283,18 @@ def impact_times(
     dist = np.empty(n)
     k, kc = (n if pose else 0), (n if contact else 0)
     pos_out, rot_out, contact_out = np.empty((k, 3)), np.empty((k, 3, 3)), np.empty((kc, 3))
-    kern = toi_parallel if use_parallel(parallel, n) else toi_serial
+    parallel = use_parallel(parallel, n)
+    kern = toi_parallel if parallel else toi_serial
+    blocks = work_blocks(n, parallel)
+    work = (np.empty((blocks, 3)), np.empty((blocks, 3, 3)), *workspace(blocks, EPA_ROOM[0]))  # b's pose, distance's
     args = (a_arrays.floats, a_arrays.ints, b_arrays.floats, b_arrays.ints, (pos_a, rot_a, pos_b, rot_b))
     args += ((vel, omg, hor), float(rtol), float(atol), float(np.finfo(dtype).eps), int(max_iter))
-    args += ((time, status, iterations, dist), (pos_out, rot_out), contact_out)
-    first_call(("time_of_impact", kern, np.dtype(dtype)), kern, *args)
+    outs = ((time, status, iterations, dist), (pos_out, rot_out), contact_out)
+    first_call(("time_of_impact", kern, np.dtype(dtype)), kern, *args, work, *outs)
+    again = np.flatnonzero(status == RERUN)  # EPA out of the batch's room: rarely needed
+    if again.size:
+        kern = toi_rerun_parallel if use_parallel(parallel, again.size) else toi_rerun_serial
+        first_call(("time_of_impact_rerun", kern, np.dtype(dtype)), kern, *args, again, *outs)
     return TimeOfImpactResult(
         time,
         status,

@@ -332,6 +332,16 @@ def use_parallel(parallel, n):
     return bool(parallel)
 
 
+#: Blocks of pairs per thread in a parallel batch whose pairs need a workspace (each block has its own,
+#: so a block's pairs reuse it; more blocks balance the threads better).
+BLOCKS_PER_THREAD = 4
+
+
+def work_blocks(n, parallel):
+    """How many blocks (each with its own workspace) a batch of ``n`` pairs is cut into."""
+    return max(1, min(n, BLOCKS_PER_THREAD * numba.get_num_threads())) if parallel else 1
+
+
 def pack(vx, vy, edge_angle, edge_table, vertex_angle, inv_edge_len, offsets, radius, centre, dtype):
     """A prism set's nine arrays as one float array of ``dtype`` and one int64 array (see :func:`unpack`).
 

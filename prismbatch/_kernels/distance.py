@@ -46,7 +46,8 @@ LOOSE_FRACTION = 0.1
 EPS64 = float(np.finfo(np.float64).eps)
 GJK_MAX_ITER = 128
 #: EPA's room in vertices: tried in turn while it runs out (128 hold 99.99 % of 3600-gon pairs; 100,000-gons
-#: need up to ~600); it has 8 faces per vertex.
+#: need up to ~600); it has 8 faces per vertex. The batch loop holds one workspace of the first per block
+#: and sends the rare pair that runs out of it to a second pass (:func:`pair_distance_any_room`).
 EPA_ROOM = (128, 1024, 8192)
 #: A face counts as seen from a new point up to this fraction of the accuracy below its plane: on nearly
 #: coplanar faces (100,000-gons) rounding would otherwise leave an unseen face inside the seen region.
@@ -184,6 +185,17 @@ def closest(W, I, lam, m):
 # --- GJK and EPA ---------------------------------------------------------------------------------
 
 
+@jit(inline="always")
+def _copy_simplex(W, I, lam, src, dst, m):
+    """Rows ``src .. src + m - 1`` of the simplex to ``dst ..`` (element by element: a slice copy
+    would need Numba's reference counting, which the batch loop runs without)."""
+    for j in range(m):
+        for c in range(3):
+            W[dst + j, c] = W[src + j, c]
+            I[dst + j, c] = I[src + j, c]
+        lam[dst + j] = lam[src + j]
+
+
 @jit
 def gjk(P, ix, fr, cone, ox, oy, oz, acc, loose, W, I, lam):
     """Closest point of D_L to o: GJK on the support function.
@@ -221,9 +233,7 @@ def gjk(P, ix, fr, cone, ox, oy, oz, acc, loose, W, I, lam):
         for j in range(m):
             if I[j, 0] == ia and I[j, 1] == ib and I[j, 2] == kc:  # no progress: converged to rounding
                 return m, vx, vy, vz, lower <= acc or vn - lower > loose, lower
-        W[4 : 4 + m] = W[:m]  # kept: on slivers rounding can misjudge the faces and lose much ground
-        I[4 : 4 + m] = I[:m]
-        lam[4 : 4 + m] = lam[:m]
+        _copy_simplex(W, I, lam, 0, 4, m)  # kept: on slivers rounding can misjudge the faces and lose much ground
         m0, vx0, vy0, vz0 = m, vx, vy, vz
         vv0 = vx * vx + vy * vy + vz * vz
         W[m, 0], W[m, 1], W[m, 2] = wx, wy, wz
@@ -231,9 +241,7 @@ def gjk(P, ix, fr, cone, ox, oy, oz, acc, loose, W, I, lam):
         m, vx, vy, vz, inside, face = closest(W, I, lam, m + 1)
         if not inside and vx * vx + vy * vy + vz * vz > 2.0 * vv0:  # lost ground: back to the last simplex
             m = m0
-            W[:m] = W[4 : 4 + m]
-            I[:m] = I[4 : 4 + m]
-            lam[:m] = lam[4 : 4 + m]
+            _copy_simplex(W, I, lam, 4, 0, m)
             return m, vx0, vy0, vz0, lower <= acc or vn - lower > loose, lower  # a gap if shown, else EPA decides
         if inside:
             if face > acc:
@@ -264,7 +272,8 @@ def _tetrahedron(P, ix, fr, cone, W, I, m, V, VI, tiny):
     cnt = 0
     for j in range(m):
         if cnt == 0 or _off_hull(V, cnt, row(W, j)) > tiny:
-            V[cnt], VI[cnt] = W[j], I[j]
+            for c in range(3):
+                V[cnt, c], VI[cnt, c] = W[j, c], I[j, c]
             cnt += 1
     g = (1.0, 0.0, 0.0)
     while cnt < 4:
@@ -313,7 +322,7 @@ def _set_face(V, FV, FN, FG, f, i, j, k):
 
 
 @jit
-def epa(P, ix, fr, cone, W, I, m, acc, MV):
+def epa(P, ix, fr, cone, W, I, m, acc, work):
     """Penetration depth of D_L from GJK's final simplex: (depth, nx, ny, nz, code).
 
     The simplex (whose hull holds the origin, to within ``acc``) is grown to a
@@ -321,20 +330,17 @@ def epa(P, ix, fr, cone, W, I, m, acc, MV):
     support in that face's normal n lies within ``acc`` of the face. The depth
     returned is h_D(n), the support value (within ``acc`` above the face offset,
     a lower bound); ``n`` points out of D. ``code``: EPA_DEPTH; EPA_STOPPED (out
-    of room, ``MV`` vertices, or a step that would break the polytope); FLAT (no tetrahedron:
-    D_L lies within ``acc`` of a plane through the origin; depth 0, n across it).
+    of room, the workspace's vertices, or a step that would break the polytope); FLAT (no tetrahedron:
+    D_L lies within ``acc`` of a plane through the origin; depth 0, n across it). ``work``: a
+    :func:`workspace` block (its contents on entry do not matter).
     """
-    MF = 8 * MV
-    V = np.empty((MV, 3))
-    VI = np.empty((MV, 3), dtype=np.int64)
+    V, VI, FV, FA, FN, FG, alive, stack, hor, start = work[3:]
+    MV, MF = V.shape[0], FV.shape[0]
     ok, nx, ny, nz = _tetrahedron(P, ix, fr, cone, W, I, m, V, VI, acc)
     if not ok:
         return 0.0, nx, ny, nz, FLAT
-    FV = np.empty((MF, 3), dtype=np.int64)
-    FA = np.empty((MF, 3), dtype=np.int64)  # FA[f, e]: the face across edge e (FV[f, e] -> FV[f, e + 1])
-    FN = np.empty((MF, 4))
-    FG = np.empty(MF, dtype=np.bool_)
-    alive = np.zeros(MF, dtype=np.bool_)
+    alive[:] = False
+    start[:] = -1  # new face whose horizon edge starts at a vertex
     for f, (i, j, k) in enumerate(((0, 2, 1), (0, 1, 3), (1, 2, 3), (0, 3, 2))):
         _set_face(V, FV, FN, FG, f, i, j, k)
         alive[f] = True
@@ -345,9 +351,6 @@ def epa(P, ix, fr, cone, W, I, m, acc, MV):
                     if FV[g, e2] == FV[f, (e + 1) % 3] and FV[g, (e2 + 1) % 3] == FV[f, e]:
                         FA[f, e] = g
     nf, nv = 4, 4
-    stack = np.empty((2 * MF + 3, 2), dtype=np.int64)  # (face, edge) to cross
-    hor = np.empty((MF, 4), dtype=np.int64)  # horizon edge (a, b), the face beyond and its edge index
-    start = np.full(MV, -1, dtype=np.int64)  # new face whose horizon edge starts at a vertex
     bh, bx, by, bz = math.inf, 1.0, 0.0, 0.0  # the least support value of a face set aside (an upper bound)
     while True:
         f = -1
@@ -431,14 +434,60 @@ def epa(P, ix, fr, cone, W, I, m, acc, MV):
 
 
 @jit
-def pair_distance(P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, rtol, atol, eps, witness, W, I, lam):
+def workspace(blocks, room):
+    """Scratch of ``blocks`` independent distance computations with EPA room for ``room`` vertices:
+    GJK's simplex and a copy (W 8 x 3, I 8 x 3, lam 8), then EPA's polytope (vertices, faces with
+    their neighbours, normals and flags, the walk's stack, the horizon and its links), each array
+    with a leading axis of ``blocks`` (:func:`block_of` takes one)."""
+    b, mv, mf = blocks, room, 8 * room
+    return (
+        np.empty((b, 8, 3)),
+        np.empty((b, 8, 3), dtype=np.int64),
+        np.empty((b, 8)),
+        np.empty((b, mv, 3)),
+        np.empty((b, mv, 3), dtype=np.int64),
+        np.empty((b, mf, 3), dtype=np.int64),
+        np.empty((b, mf, 3), dtype=np.int64),
+        np.empty((b, mf, 4)),
+        np.empty((b, mf), dtype=np.bool_),
+        np.empty((b, mf), dtype=np.bool_),
+        np.empty((b, 2 * mf + 3, 2), dtype=np.int64),
+        np.empty((b, mf, 4), dtype=np.int64),
+        np.empty((b, mv), dtype=np.int64),
+    )
+
+
+@jit(inline="always")
+def block_of(work, k):
+    """Block k of a :func:`workspace`."""
+    return (
+        work[0][k],
+        work[1][k],
+        work[2][k],
+        work[3][k],
+        work[4][k],
+        work[5][k],
+        work[6][k],
+        work[7][k],
+        work[8][k],
+        work[9][k],
+        work[10][k],
+        work[11][k],
+        work[12][k],
+    )
+
+
+@jit
+def pair_distance(P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, rtol, atol, eps, witness, work):
     """One pair: (signed distance, tol, solver code, normal, point_a), world coordinates.
 
     ``P``, ``ix``: as :func:`support`; ``ca``, ``cb``: the polygons' centres in
-    their local frames; ``ra``, ``rb``: their radii. ``W``, ``I``, ``lam``: GJK
-    workspace (8 x 3, 8 x 3 int, 8). The normal (3-tuple) points from a to b,
-    point_b = point_a + distance * normal; both NaN unless ``witness``.
+    their local frames; ``ra``, ``rb``: their radii. ``work``: a block of
+    :func:`workspace` (GJK's simplex, EPA's polytope); where EPA runs out of its room the
+    code is EPA_STOPPED (:func:`pair_distance_any_room` then tries more). The normal
+    (3-tuple) points from a to b, point_b = point_a + distance * normal; both NaN unless ``witness``.
     """
+    W, I, lam = work[0], work[1], work[2]
     ox, oy, oz, dx, dy, dz = centres_world(ca[0], ca[1], cb[0], cb[1], Pa, Ra, Pb, Rb)
     centre_distance = math.sqrt(dx * dx + dy * dy + dz * dz)
     S = ra + rb + centre_distance
@@ -464,10 +513,7 @@ def pair_distance(P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, rtol, atol, eps, witnes
         dist = math.sqrt(vx * vx + vy * vy + vz * vz)
         nx, ny, nz = -vx / dist, -vy / dist, -vz / dist
     else:
-        for room in EPA_ROOM:  # more room only for the rare pair that needs it
-            depth, nx, ny, nz, code = epa(P, ix, fr, cone, W, I, m, acc, room)
-            if code != EPA_STOPPED:
-                break
+        depth, nx, ny, nz, code = epa(P, ix, fr, cone, W, I, m, acc, work)
         dist = -depth
     nan = math.nan
     if not witness:
@@ -484,15 +530,31 @@ def pair_distance(P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, rtol, atol, eps, witnes
     return dist, tol, code, (nx, ny, nz), (px, py, pz)
 
 
+@jit
+def pair_distance_any_room(P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, rtol, atol, eps, witness, work):
+    """:func:`pair_distance` in ``work`` (a block of :func:`workspace` with room ``EPA_ROOM[0]``), then,
+    while EPA runs out of room, again with the larger rooms of :data:`EPA_ROOM` (allocated here: the
+    rare pair; the one-pair path, the batch's second pass and the time of impact call this)."""
+    args = (P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, rtol, atol, eps, witness)
+    res = pair_distance(*args, work)
+    for room in EPA_ROOM[1:]:
+        if res[2] != EPA_STOPPED:
+            break
+        res = pair_distance(*args, block_of(workspace(1, room), 0))  # the same GJK, then EPA with more room
+    return res
+
+
 @jit(inline="always")
 def signed_status(d, tol):
     """SEPARATED, TOUCHING (``|d| <= tol``) or PENETRATING."""
     return TOUCHING if abs(d) <= tol else (SEPARATED if d > tol else PENETRATING)
 
 
-def _distance_loop(a_floats, a_ints, b_floats, b_ints, poses, rtol, atol, eps, witness, out, wit):
-    """Every pair of a batch; ``poses``: (pos_a, rot_a, pos_b, rot_b), each of N or 1 rows;
-    ``out``: (distance, status, tol, solver), N each; ``wit``: (normal, point_a, point_b), N x 3 or 0 x 3."""
+def _distance_loop(a_floats, a_ints, b_floats, b_ints, poses, rtol, atol, eps, witness, work, out, wit):
+    """Every pair of a batch, in as many contiguous blocks as ``work`` has (:func:`workspace`, one per
+    block); ``poses``: (pos_a, rot_a, pos_b, rot_b), each of N or 1 rows; ``out``: (distance, status,
+    tol, solver), N each; ``wit``: (normal, point_a, point_b), N x 3 or 0 x 3. A pair whose EPA ran out
+    of room has solver EPA_STOPPED: the caller reruns it (:func:`pair_distance_any_room`)."""
     avx, avy, aeang, aetab, _, _, aoff, arad, acen = unpack(a_floats, a_ints)
     bvx, bvy, beang, betab, _, _, boff, brad, bcen = unpack(b_floats, b_ints)
     P = (avx, avy, aeang, aetab, bvx, bvy, beang, betab)
@@ -501,26 +563,63 @@ def _distance_loop(a_floats, a_ints, b_floats, b_ints, poses, rtol, atol, eps, w
     normal_out, pa_out, pb_out = wit
     npa, nra, npb, nrb = pos_a.shape[0], rot_a.shape[0], pos_b.shape[0], rot_b.shape[0]
     nsa, nsb = arad.shape[0], brad.shape[0]
-    for ip in prange(dist_out.shape[0]):
-        i = np.int64(ip)  # prange's index is unsigned
-        ka, kb = min(i, nsa - 1), min(i, nsb - 1)  # a batch of one broadcasts
+    n = dist_out.shape[0]
+    blocks = work[0].shape[0]
+    for bp in prange(blocks):
+        blk = np.int64(bp)  # prange's index is unsigned
+        ws = block_of(work, blk)
+        for i in range(blk * n // blocks, (blk + 1) * n // blocks):
+            ka, kb = min(i, nsa - 1), min(i, nsb - 1)  # a batch of one broadcasts
+            ix = (aoff[ka], aoff[ka + 1] - aoff[ka], boff[kb], boff[kb + 1] - boff[kb])
+            Pa, Ra = pos_a[min(i, npa - 1)], rot_a[min(i, nra - 1)]
+            Pb, Rb = pos_b[min(i, npb - 1)], rot_b[min(i, nrb - 1)]
+            d, t, code, nrm, p = pair_distance(
+                P, ix, acen[ka], bcen[kb], arad[ka], brad[kb], Pa, Ra, Pb, Rb, rtol, atol, eps, witness, ws
+            )
+            _store(
+                i, d, t, code, nrm, p, witness, dist_out, status_out, tol_out, solver_out, normal_out, pa_out, pb_out
+            )
+
+
+@jit(inline="always")
+def _store(i, d, t, code, n, p, witness, dist_out, status_out, tol_out, solver_out, normal_out, pa_out, pb_out):
+    """Row i of the outputs of :func:`_distance_loop` (arrays, not their tuples: tuples of arrays
+    written inside a parallel loop's body did not reach the caller's arrays)."""
+    dist_out[i] = d
+    tol_out[i] = t
+    status_out[i] = signed_status(d, t)
+    solver_out[i] = code
+    if witness:
+        for c in range(3):
+            normal_out[i, c] = n[c]
+            pa_out[i, c] = p[c]
+            pb_out[i, c] = p[c] + d * n[c]
+
+
+def _rerun_loop(a_floats, a_ints, b_floats, b_ints, poses, rtol, atol, eps, witness, pairs, out, wit):
+    """The pairs ``pairs`` (indices) whose EPA ran out of the batch loop's room, with more room."""
+    avx, avy, aeang, aetab, _, _, aoff, arad, acen = unpack(a_floats, a_ints)
+    bvx, bvy, beang, betab, _, _, boff, brad, bcen = unpack(b_floats, b_ints)
+    P = (avx, avy, aeang, aetab, bvx, bvy, beang, betab)
+    pos_a, rot_a, pos_b, rot_b = poses
+    dist_out, status_out, tol_out, solver_out = out
+    normal_out, pa_out, pb_out = wit
+    npa, nra, npb, nrb = pos_a.shape[0], rot_a.shape[0], pos_b.shape[0], rot_b.shape[0]
+    nsa, nsb = arad.shape[0], brad.shape[0]
+    for k in prange(pairs.shape[0]):
+        i = pairs[k]
+        ka, kb = min(i, nsa - 1), min(i, nsb - 1)
         ix = (aoff[ka], aoff[ka + 1] - aoff[ka], boff[kb], boff[kb + 1] - boff[kb])
-        W = np.empty((8, 3))  # GJK's simplex, and a copy of the last one
-        I = np.empty((8, 3), dtype=np.int64)
-        lam = np.empty(8)
-        Pa, Ra, Pb, Rb = pos_a[min(i, npa - 1)], rot_a[min(i, nra - 1)], pos_b[min(i, npb - 1)], rot_b[min(i, nrb - 1)]
-        d, t, code, n, p = pair_distance(
-            P, ix, acen[ka], bcen[kb], arad[ka], brad[kb], Pa, Ra, Pb, Rb, rtol, atol, eps, witness, W, I, lam
+        Pa, Ra = pos_a[min(i, npa - 1)], rot_a[min(i, nra - 1)]
+        Pb, Rb = pos_b[min(i, npb - 1)], rot_b[min(i, nrb - 1)]
+        ws = block_of(workspace(1, EPA_ROOM[0]), 0)
+        d, t, code, nrm, p = pair_distance_any_room(
+            P, ix, acen[ka], bcen[kb], arad[ka], brad[kb], Pa, Ra, Pb, Rb, rtol, atol, eps, witness, ws
         )
-        dist_out[i] = d
-        tol_out[i] = t
-        status_out[i] = signed_status(d, t)
-        solver_out[i] = code
-        if witness:
-            for c in range(3):
-                normal_out[i, c] = n[c]
-                pa_out[i, c] = p[c]
-                pb_out[i, c] = p[c] + d * n[c]
+        _store(i, d, t, code, nrm, p, witness, dist_out, status_out, tol_out, solver_out, normal_out, pa_out, pb_out)
 
 
-distance_serial, distance_parallel = twins(_distance_loop, "distance", error_model="numpy")
+# No reference counting in the batch loop: it allocates nothing (its workspace comes in), and with it
+# every array handed to the GJK and EPA calls costs atomic increments per call (see jit.jit).
+distance_serial, distance_parallel = twins(_distance_loop, "distance", error_model="numpy", refcounts=False)
+rerun_serial, rerun_parallel = twins(_rerun_loop, "distance_rerun", error_model="numpy")

@@ -10,7 +10,7 @@ import math
 import numpy as np
 
 from .batch import pair_problem, unpack
-from .distance import pair_distance, signed_status
+from .distance import EPA_ROOM, block_of, pair_distance_any_room, signed_status, workspace
 from .jit import per_dtype
 
 
@@ -45,9 +45,9 @@ def _distance_pair(
     bvx, bvy, beang, betab, _, _, boff, brad, bcen = unpack(b_floats, b_ints)
     P = (avx, avy, aeang, aetab, bvx, bvy, beang, betab)
     ix = (aoff[0], aoff[1] - aoff[0], boff[0], boff[1] - boff[0])
-    W, I, lam = np.empty((8, 3)), np.empty((8, 3), dtype=np.int64), np.empty(8)
-    d, t, code, n, p = pair_distance(
-        P, ix, acen[0], bcen[0], arad[0], brad[0], Pa, Ra, Pb, Rb, rtol, atol, eps, witness, W, I, lam
+    work = block_of(workspace(1, EPA_ROOM[0]), 0)
+    d, t, code, n, p = pair_distance_any_room(
+        P, ix, acen[0], bcen[0], arad[0], brad[0], Pa, Ra, Pb, Rb, rtol, atol, eps, witness, work
     )
     q = (p[0] + d * n[0], p[1] + d * n[1], p[2] + d * n[2])
     return 0, 0.0, d, t, signed_status(d, t), code, n, p, q

@@ -35,7 +35,7 @@ import numpy as np
 from numba import prange
 
 from .batch import centres_world, pair_tolerance, unpack, use_parallel
-from .distance import BOX, GJK_MAX_ITER, closest, pair_distance
+from .distance import BOX, EPA_ROOM, GJK_MAX_ITER, block_of, closest, pair_distance_any_room, workspace
 from .jit import first_call, jit, twins
 from .minkowski import cone_box, support
 from .planar import point_polygon_distance
@@ -163,11 +163,9 @@ def _fallback_loop(a_floats, a_ints, b_floats, b_ints, poses, margin, rtol, atol
         i = pairs[k]
         ka, kb, ix, r = _pair_index(i, arad, aoff, brad, boff, pos_a.shape[0], rot_a.shape[0], pos_b.shape[0],
                                     rot_b.shape[0])  # fmt: skip
-        W = np.empty((8, 3))
-        I = np.empty((8, 3), dtype=np.int64)
-        lam = np.empty(8)
-        d = pair_distance(P, ix, acen[ka], bcen[kb], arad[ka], brad[kb], pos_a[r[0]], rot_a[r[1]], pos_b[r[2]],
-                          rot_b[r[3]], rtol, atol, eps, False, W, I, lam)[0]  # fmt: skip
+        work = block_of(workspace(1, EPA_ROOM[0]), 0)
+        d = pair_distance_any_room(P, ix, acen[ka], bcen[kb], arad[ka], brad[kb], pos_a[r[0]], rot_a[r[1]],
+                                   pos_b[r[2]], rot_b[r[3]], rtol, atol, eps, False, work)[0]  # fmt: skip
         hit_out[i] = d <= margin
 
 

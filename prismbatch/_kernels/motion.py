@@ -45,13 +45,15 @@ import numpy as np
 from numba import prange
 
 from .batch import centres_world, unpack
-from .distance import ACC_EPS, BOX, EPS64, LOOSE_FRACTION, pair_distance
+from .distance import ACC_EPS, BOX, EPA_ROOM, EPA_STOPPED, EPS64, LOOSE_FRACTION, block_of, pair_distance, workspace
 from .jit import jit, twins
 from .planar import extreme_vertex, slab_support
 
 #: Status codes of a pair: touching at ``time``; no contact up to the horizon; iteration cap reached
 #: (or a step too small to advance the time), ``time`` then being how far the motion is proven free.
 CONTACT, CLEAR, UNDECIDED = 1, 0, -1
+#: Internal status of the batch loop: EPA ran out of the block's room; the pair is computed again with more.
+RERUN = -2
 
 
 @jit(inline="always")
@@ -200,14 +202,18 @@ def isotropic_step(rest, gap, approach, base, w_perp, S, theta, rise, centre_spe
 
 
 @jit
-def pair_time_of_impact(P, ix, ca, cb, ra, rb, Pa, Ra, Pb0, Rb0, v, w, horizon, rtol, atol, eps, max_iter, ws):
+def pair_time_of_impact(P, ix, ca, cb, ra, rb, Pa, Ra, Pb0, Rb0, v, w, horizon, rtol, atol, eps, max_iter, ws, rerun):
     """One pair: (time, status, iterations, signed distance at time, contact point 3-tuple).
 
     ``P``, ``ix``, ``ca``, ``cb``, ``ra``, ``rb``: as :func:`pair_distance`;
     ``Pb0``, ``Rb0``: b's pose at t = 0; ``v``, ``w``: its velocity and angular
-    velocity (world); ``ws``: (Pb, Rb, W, I, lam) workspace, Pb and Rb left at
+    velocity (world); ``ws``: (Pb, Rb, work) workspace (``work`` a block of
+    :func:`~prismbatch._kernels.distance.workspace`), Pb and Rb left at
     b's pose at the returned time. The contact point (the midpoint of the
-    witness points) is NaN unless the status is CONTACT.
+    witness points) is NaN unless the status is CONTACT. ``rerun``: return the status
+    RERUN where EPA runs out of the room of ``work`` (the batch loop, which cannot allocate
+    more); else go on with its bound, as :func:`~prismbatch._kernels.distance.pair_distance_any_room`
+    does at its largest room.
 
     Each step is the longest of :func:`isotropic_step` and :func:`directional_step`
     in the world frame and in b's frame. Their ``q``: (the gap along u = -n less
@@ -218,7 +224,7 @@ def pair_time_of_impact(P, ix, ca, cb, ra, rb, Pa, Ra, Pb0, Rb0, v, w, horizon, 
     its vertices extreme along and against it, u x w in its plane, the polygon,
     its axis's lean along the support direction, u.(w x d), ``|w x d|``).
     """
-    Pb, Rb, W, I, lam = ws
+    Pb, Rb, work = ws
     avx, avy, aeang, aetab, bvx, bvy, beang, betab = P
     poly_a = (avx, avy, aeang, aetab, ix[0], ix[1])
     poly_b = (bvx, bvy, beang, betab, ix[2], ix[3])
@@ -248,7 +254,9 @@ def pair_time_of_impact(P, ix, ca, cb, ra, rb, Pa, Ra, Pb0, Rb0, v, w, horizon, 
         for c in range(3):
             Pb[c] = Pb0[c] + v[c] * t
         rotate(wx, wy, wz, t, Rb0, Rb)
-        d, tol, _, n, pa = pair_distance(P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, rtol, atol, eps, True, W, I, lam)
+        d, tol, code, n, pa = pair_distance(P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, rtol, atol, eps, True, work)
+        if rerun and code == EPA_STOPPED:
+            return t, RERUN, it, d, (nan, nan, nan)
         if d <= tol:
             h = 0.5 * d
             return t, CONTACT, it, d, (pa[0] + h * n[0], pa[1] + h * n[1], pa[2] + h * n[2])
@@ -321,10 +329,15 @@ def pair_time_of_impact(P, ix, ca, cb, ra, rb, Pa, Ra, Pb0, Rb0, v, w, horizon, 
         t += step
 
 
-def _toi_loop(a_floats, a_ints, b_floats, b_ints, poses, motion, rtol, atol, eps, max_iter, out, pose_out, contact):
-    """Every pair of a batch; ``poses``: (pos_a, rot_a, pos_b, rot_b), ``motion``: (velocity,
-    angular_velocity, horizon), each of N or 1 rows; ``out``: (time, status, iterations, distance),
-    N each; ``pose_out``: (pos_b, rot_b) at that time, N or 0 rows; ``contact``: N x 3 or 0 x 3."""
+def _toi_loop(
+    a_floats, a_ints, b_floats, b_ints, poses, motion, rtol, atol, eps, max_iter, work, out, pose_out, contact
+):
+    """Every pair of a batch, in as many contiguous blocks as ``work`` has: (Pb (blocks, 3), Rb
+    (blocks, 3, 3), a :func:`~prismbatch._kernels.distance.workspace`); ``poses``: (pos_a, rot_a,
+    pos_b, rot_b), ``motion``: (velocity, angular_velocity, horizon), each of N or 1 rows; ``out``:
+    (time, status, iterations, distance), N each; ``pose_out``: (pos_b, rot_b) at that time, N or 0
+    rows; ``contact``: N x 3 or 0 x 3. A pair whose EPA ran out of room has status RERUN (see
+    :func:`_rerun_loop`)."""
     avx, avy, aeang, aetab, _, _, aoff, arad, acen = unpack(a_floats, a_ints)
     bvx, bvy, beang, betab, _, _, boff, brad, bcen = unpack(b_floats, b_ints)
     P = (avx, avy, aeang, aetab, bvx, bvy, beang, betab)
@@ -332,48 +345,63 @@ def _toi_loop(a_floats, a_ints, b_floats, b_ints, poses, motion, rtol, atol, eps
     vel, omg, horizon = motion
     time_out, status_out, iter_out, dist_out = out
     pos_out, rot_out = pose_out
-    npa, nra, npb, nrb = pos_a.shape[0], rot_a.shape[0], pos_b.shape[0], rot_b.shape[0]
-    nv, nw, nh = vel.shape[0], omg.shape[0], horizon.shape[0]
-    nsa, nsb = arad.shape[0], brad.shape[0]
-    for ip in prange(time_out.shape[0]):
-        i = np.int64(ip)  # prange's index is unsigned
-        ka, kb = min(i, nsa - 1), min(i, nsb - 1)  # a batch of one broadcasts
-        ix = (aoff[ka], aoff[ka + 1] - aoff[ka], boff[kb], boff[kb + 1] - boff[kb])
-        ws = (np.empty(3), np.empty((3, 3)), np.empty((8, 3)), np.empty((8, 3), dtype=np.int64), np.empty(8))
-        Pa, Ra, Pb, Rb = pos_a[min(i, npa - 1)], rot_a[min(i, nra - 1)], pos_b[min(i, npb - 1)], rot_b[min(i, nrb - 1)]
-        t, st, it, d, p = pair_time_of_impact(
-            P,
-            ix,
-            acen[ka],
-            bcen[kb],
-            arad[ka],
-            brad[kb],
-            Pa,
-            Ra,
-            Pb,
-            Rb,
-            vel[min(i, nv - 1)],
-            omg[min(i, nw - 1)],
-            horizon[min(i, nh - 1)],
-            rtol,
-            atol,
-            eps,
-            max_iter,
-            ws,
-        )
-        time_out[i] = t
-        status_out[i] = st
-        iter_out[i] = it
-        dist_out[i] = d
-        if pos_out.shape[0] > 0:
-            fin = st != CLEAR
-            for c in range(3):
-                pos_out[i, c] = ws[0][c] if fin else math.nan
-                for j in range(3):
-                    rot_out[i, c, j] = ws[1][c, j] if fin else math.nan
-        if contact.shape[0] > 0:
-            for c in range(3):
-                contact[i, c] = p[c]
+    n = time_out.shape[0]
+    blocks = work[0].shape[0]
+    for bp in prange(blocks):
+        blk = np.int64(bp)  # prange's index is unsigned
+        ws = (work[0][blk], work[1][blk], block_of(work[2:], blk))
+        for i in range(blk * n // blocks, (blk + 1) * n // blocks):
+            _one(i, P, aoff, arad, acen, boff, brad, bcen, pos_a, rot_a, pos_b, rot_b, vel, omg, horizon, rtol,
+                 atol, eps, max_iter, ws, True, time_out, status_out, iter_out, dist_out, pos_out, rot_out,
+                 contact)  # fmt: skip
 
 
-toi_serial, toi_parallel = twins(_toi_loop, "time_of_impact", error_model="numpy")
+def _rerun_loop(a_floats, a_ints, b_floats, b_ints, poses, motion, rtol, atol, eps, max_iter, pairs, out, pose_out,
+                contact):  # fmt: skip
+    """The pairs ``pairs`` (indices) that :func:`_toi_loop` left with status RERUN, with EPA's largest room
+    (the same answer as growing it step by step: a room only matters once it is full)."""
+    avx, avy, aeang, aetab, _, _, aoff, arad, acen = unpack(a_floats, a_ints)
+    bvx, bvy, beang, betab, _, _, boff, brad, bcen = unpack(b_floats, b_ints)
+    P = (avx, avy, aeang, aetab, bvx, bvy, beang, betab)
+    pos_a, rot_a, pos_b, rot_b = poses
+    vel, omg, horizon = motion
+    time_out, status_out, iter_out, dist_out = out
+    pos_out, rot_out = pose_out
+    for k in prange(pairs.shape[0]):
+        ws = (np.empty(3), np.empty((3, 3)), block_of(workspace(1, EPA_ROOM[-1]), 0))
+        _one(pairs[k], P, aoff, arad, acen, boff, brad, bcen, pos_a, rot_a, pos_b, rot_b, vel, omg, horizon, rtol,
+             atol, eps, max_iter, ws, False, time_out, status_out, iter_out, dist_out, pos_out, rot_out,
+             contact)  # fmt: skip
+
+
+@jit(inline="always")
+def _one(i, P, aoff, arad, acen, boff, brad, bcen, pos_a, rot_a, pos_b, rot_b, vel, omg, horizon, rtol, atol, eps,
+         max_iter, ws, rerun, time_out, status_out, iter_out, dist_out, pos_out, rot_out, contact):  # fmt: skip
+    """Pair i of the batch, into row i of the outputs (a batch of one broadcasts by index)."""
+    ka, kb = min(i, arad.shape[0] - 1), min(i, brad.shape[0] - 1)
+    ix = (aoff[ka], aoff[ka + 1] - aoff[ka], boff[kb], boff[kb + 1] - boff[kb])
+    Pa, Ra = pos_a[min(i, pos_a.shape[0] - 1)], rot_a[min(i, rot_a.shape[0] - 1)]
+    Pb, Rb = pos_b[min(i, pos_b.shape[0] - 1)], rot_b[min(i, rot_b.shape[0] - 1)]
+    v, w, h = vel[min(i, vel.shape[0] - 1)], omg[min(i, omg.shape[0] - 1)], horizon[min(i, horizon.shape[0] - 1)]
+    t, st, it, d, p = pair_time_of_impact(
+        P, ix, acen[ka], bcen[kb], arad[ka], brad[kb], Pa, Ra, Pb, Rb, v, w, h, rtol, atol, eps, max_iter, ws, rerun
+    )
+    time_out[i] = t
+    status_out[i] = st
+    iter_out[i] = it
+    dist_out[i] = d
+    if pos_out.shape[0] > 0:
+        fin = st != CLEAR
+        for c in range(3):
+            pos_out[i, c] = ws[0][c] if fin else math.nan
+            for j in range(3):
+                rot_out[i, c, j] = ws[1][c, j] if fin else math.nan
+    if contact.shape[0] > 0:
+        for c in range(3):
+            contact[i, c] = p[c]
+
+
+# No reference counting in the batch loop: it allocates nothing (its workspace comes in), and with it every
+# array handed to the distance calls costs atomic increments per call (see jit.jit).
+toi_serial, toi_parallel = twins(_toi_loop, "time_of_impact", error_model="numpy", refcounts=False)
+toi_rerun_serial, toi_rerun_parallel = twins(_rerun_loop, "time_of_impact_rerun", error_model="numpy")

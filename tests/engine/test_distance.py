@@ -14,6 +14,8 @@ units of the pair tolerance ``tol`` (the one ``collide`` uses); the contract che
 
 from __future__ import annotations
 
+import importlib
+
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -24,6 +26,7 @@ import prismbatch as pb
 from prismbatch.collide import pair_scale_tolerance
 from prismbatch.distance import PENETRATING, SEPARATED, TOUCHING, DistanceResult, distance
 from prismbatch.lab.distance_ref import Body, gap_features, gap_qp, residual, sat_separation
+from prismbatch.sampling import free_poses
 
 from helpers import (
     bisect_to_contact,
@@ -386,6 +389,34 @@ def test_serial_and_parallel_agree_exactly():
     s, p = run(d, parallel=False), run(d, parallel=True)
     for name in ("distance", "status", "tol", "solver", "normal", "point_a", "point_b"):
         np.testing.assert_array_equal(getattr(s, name), getattr(p, name))
+
+
+@pytest.mark.parametrize("parallel", [False, True])
+def test_pairs_out_of_the_batch_room_are_rerun(monkeypatch, parallel):
+    """The batch loop runs EPA in a fixed room and reruns the pairs that run out of it with more:
+    with the batch's room cut to 6 vertices, most penetrating pairs take the rerun, and every
+    output is the same to the bit."""
+    dist_mod = importlib.import_module("prismbatch.distance")  # the module: the package's name is the function
+
+    rng = np.random.default_rng(43)
+    col = pb.Collider(pb.Prism.regular(36, 2.0), pb.Prism.regular(37, 2.5))
+    pa, ra, pbb, rb = free_poses(400, rng, radius=2.5)
+    poses = (pa, ra, pa + 0.2 * (pbb - pa), rb)  # mostly deep overlaps
+    want = col.distance(*poses, witness=True, parallel=parallel)
+    rerun = []
+    kern_name = "rerun_parallel" if parallel else "rerun_serial"
+    original = getattr(dist_mod, kern_name)
+
+    def counting(*args):
+        rerun.append(len(args[9]))  # the pairs sent to the second pass
+        return original(*args)
+
+    monkeypatch.setattr(dist_mod, "EPA_ROOM", (6,))
+    monkeypatch.setattr(dist_mod, kern_name, counting)
+    got = col.distance(*poses, witness=True, parallel=parallel)
+    assert rerun and rerun[0] > 100 and (want.solver == 1).sum() > 200
+    for name in ("distance", "status", "tol", "solver", "normal", "point_a", "point_b"):
+        np.testing.assert_array_equal(getattr(got, name), getattr(want, name))
 
 
 def test_tolerance_is_collides():

@@ -1,5 +1,6 @@
 """prismbatch.motion.time_of_impact against closed forms and a sampling-and-bisection reference."""
 
+import importlib
 import math
 
 import numpy as np
@@ -9,6 +10,7 @@ from hypothesis import strategies as st
 
 import prismbatch as pb
 from prismbatch.motion import CLEAR, CONTACT, UNDECIDED, time_of_impact
+from prismbatch.sampling import free_poses
 
 DOWN = np.diag([1.0, -1.0, -1.0])  # a's axis points down: a's body is z <= 0 below its end face at z = 0
 SQUARE = pb.Prism.regular(4, math.sqrt(2.0), phase=math.pi / 4)  # the square [-1, 1]^2
@@ -541,3 +543,32 @@ def test_thin_body_tumbling_fast_needs_the_turn_of_its_face():
         a, b, np.broadcast_to(pos_a, (m, 3)), np.broadcast_to(rot_a, (m, 3, 3)), pos_b + np.outer(ts, v), rots
     )
     assert (d.distance > 0.0).all(), ts[np.argmax(d.distance <= 0.0)]
+
+
+@pytest.mark.parametrize("parallel", [False, True])
+def test_pairs_out_of_the_batch_room_are_rerun(monkeypatch, parallel):
+    """The batch loop runs the distance's EPA in a fixed room and reruns the pairs that run out of
+    it with the largest: with the batch's room cut to 6 vertices, the motions that start in
+    contact take the rerun, and every output is the same to the bit."""
+    motion_mod = importlib.import_module("prismbatch.motion")
+    rng = np.random.default_rng(47)
+    col = pb.Collider(pb.Prism.regular(36, 2.0), pb.Prism.regular(37, 2.5))
+    pa, ra, pbb, rb = free_poses(300, rng, radius=2.5)
+    pbb = pa + 0.3 * (pbb - pa)  # many start in contact
+    v, w = rng.normal(size=(300, 3)), rng.normal(size=(300, 3))
+    kw = dict(horizon=1.0, pose=True, contact=True, parallel=parallel)
+    want = col.time_of_impact(pa, ra, pbb, rb, v, w, **kw)
+    rerun = []
+    kern_name = "toi_rerun_parallel" if parallel else "toi_rerun_serial"
+    original = getattr(motion_mod, kern_name)
+
+    def counting(*args):
+        rerun.append(len(args[10]))  # the pairs sent to the second pass
+        return original(*args)
+
+    monkeypatch.setattr(motion_mod, "EPA_ROOM", (6,))
+    monkeypatch.setattr(motion_mod, kern_name, counting)
+    got = col.time_of_impact(pa, ra, pbb, rb, v, w, **kw)
+    assert rerun and rerun[0] > 50 and (want.time == 0).sum() > 50
+    for name, value in want.columns().items():
+        np.testing.assert_array_equal(got.columns()[name], value)
