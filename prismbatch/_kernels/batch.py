@@ -284,7 +284,7 @@ def _collide_loop(
             contact_out[i, 2] = cz
 
 
-collide_serial, collide_parallel = twins(_collide_loop, "collide", error_model="numpy", refcounts=False)
+collide_serial, collide_parallel = twins(_collide_loop, "collide", error_model="numpy")
 
 
 #: Batches smaller than this run on the serial kernel when ``parallel`` is
@@ -354,7 +354,7 @@ def pack(vx, vy, edge_angle, edge_table, vertex_angle, inv_edge_len, offsets, ra
     return floats, ints
 
 
-@jit(inline="always")
+@jit(inline="always", refcounts=True)  # returns arrays (when called from Python, not inlined)
 def unpack(floats, ints):
     """The nine arrays of a :func:`pack`-ed prism set, as views, in the order :func:`pack` takes them.
 
@@ -475,4 +475,4 @@ def _collide_pair(
 #: its own has compiled (``disable_compile``), so that a call with anything else (another
 #: dtype or layout, a read-only array, a list) raises TypeError instead of compiling a
 #: specialisation: ``Collider.collide_pair`` then converts the arguments and calls again.
-collide_pair = per_dtype(_collide_pair, "collide_pair", (np.float64, np.float32), error_model="numpy", refcounts=False)
+collide_pair = per_dtype(_collide_pair, "collide_pair", (np.float64, np.float32), error_model="numpy")

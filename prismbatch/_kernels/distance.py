@@ -433,7 +433,7 @@ def epa(P, ix, fr, cone, W, I, m, acc, work):
 # --- one pair, and the batch loop -----------------------------------------------------------------
 
 
-@jit
+@jit(refcounts=True)
 def workspace(blocks, room):
     """Scratch of ``blocks`` independent distance computations with EPA room for ``room`` vertices:
     GJK's simplex and a copy (W 8 x 3, I 8 x 3, lam 8), then EPA's polytope (vertices, faces with
@@ -457,7 +457,7 @@ def workspace(blocks, room):
     )
 
 
-@jit(inline="always")
+@jit(inline="always", refcounts=True)  # returns arrays (when called from Python, not inlined)
 def block_of(work, k):
     """Block k of a :func:`workspace`."""
     return (
@@ -530,7 +530,7 @@ def pair_distance(P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, rtol, atol, eps, witnes
     return dist, tol, code, (nx, ny, nz), (px, py, pz)
 
 
-@jit
+@jit(refcounts=True)
 def pair_distance_any_room(P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, rtol, atol, eps, witness, work):
     """:func:`pair_distance` in ``work`` (a block of :func:`workspace` with room ``EPA_ROOM[0]``), then,
     while EPA runs out of room, again with the larger rooms of :data:`EPA_ROOM` (allocated here: the
@@ -619,7 +619,7 @@ def _rerun_loop(a_floats, a_ints, b_floats, b_ints, poses, rtol, atol, eps, witn
         _store(i, d, t, code, nrm, p, witness, dist_out, status_out, tol_out, solver_out, normal_out, pa_out, pb_out)
 
 
-# No reference counting in the batch loop: it allocates nothing (its workspace comes in), and with it
-# every array handed to the GJK and EPA calls costs atomic increments per call (see jit.jit).
-distance_serial, distance_parallel = twins(_distance_loop, "distance", error_model="numpy", refcounts=False)
-rerun_serial, rerun_parallel = twins(_rerun_loop, "distance_rerun", error_model="numpy")
+# The batch loop allocates nothing (its workspace comes in): no reference counting (jit's default); the
+# second pass allocates rooms and counts.
+distance_serial, distance_parallel = twins(_distance_loop, "distance", error_model="numpy")
+rerun_serial, rerun_parallel = twins(_rerun_loop, "distance_rerun", error_model="numpy", refcounts=True)

@@ -54,4 +54,6 @@ def _distance_pair(
 
 
 #: The one-pair kernel, one compiled copy per dtype.
-distance_pair = per_dtype(_distance_pair, "distance_pair", (np.float64, np.float32), error_model="numpy")
+distance_pair = per_dtype(
+    _distance_pair, "distance_pair", (np.float64, np.float32), error_model="numpy", refcounts=True
+)

@@ -23,18 +23,25 @@ def cache_enabled():
     return _cache["ok"]
 
 
-def jit(func=None, *, refcounts=True, **options):
+def jit(func=None, *, refcounts=False, **options):
     """``numba.njit(cache=True, **options)``, without the cache where it cannot be written.
 
     Usable as ``@jit`` or ``@jit(inline="always")``. No ``fastmath``: the
     kernels rely on NaN and inf behaving as IEEE says.
 
-    ``refcounts=False`` compiles without Numba's reference counting of arrays
-    (its ``_nrt`` option), for the per-pair loops: they allocate nothing, yet
-    with it every alias of an array argument in inlined code costs atomic
-    increments and decrements, about 90 ns per pair in the batch loop
-    (measured). A kernel compiled so that allocates fails to compile
-    ("NRT required but not enabled"); it cannot go wrong silently.
+    Compiled without Numba's reference counting of arrays (its ``_nrt``
+    option) unless ``refcounts=True``, which the functions that allocate
+    arrays or return them take. Counting costs atomic increments and
+    decrements on every array handed to a call (about 90 ns per pair in the
+    collide loop, half the time of a distance query), and a callee inherits
+    it: Numba compiles a function once per signature, with the flags of the
+    first caller in the process (or of the compile its disk cache kept), so
+    a helper first reached from a counting kernel counted references in
+    every kernel that called it later, and the speed of a loop depended on
+    which call came first. A function compiled without it that allocates
+    fails to compile ("NRT required but not enabled"); one that returned an
+    array would hand its caller a reference it does not own, so none does
+    (a test checks the compiled signatures).
     """
     if not refcounts:
         options["_nrt"] = False

@@ -150,7 +150,7 @@ def _margin_loop(a_floats, a_ints, b_floats, b_ints, poses, margin, rtol, atol, 
             code_out[i] = code
 
 
-margin_serial, margin_parallel = twins(_margin_loop, "margin", error_model="numpy", refcounts=False)
+margin_serial, margin_parallel = twins(_margin_loop, "margin", error_model="numpy")
 
 
 def _fallback_loop(a_floats, a_ints, b_floats, b_ints, poses, margin, rtol, atol, eps, pairs, hit_out):
@@ -169,7 +169,9 @@ def _fallback_loop(a_floats, a_ints, b_floats, b_ints, poses, margin, rtol, atol
         hit_out[i] = d <= margin
 
 
-margin_fallback_serial, margin_fallback_parallel = twins(_fallback_loop, "margin_fallback", error_model="numpy")
+margin_fallback_serial, margin_fallback_parallel = twins(
+    _fallback_loop, "margin_fallback", error_model="numpy", refcounts=True
+)
 
 
 def run(a_arrays, b_arrays, pos_a, rot_a, pos_b, rot_b, n, margin, rtol, atol, parallel):

@@ -401,7 +401,7 @@ def _one(i, P, aoff, arad, acen, boff, brad, bcen, pos_a, rot_a, pos_b, rot_b, v
             contact[i, c] = p[c]
 
 
-# No reference counting in the batch loop: it allocates nothing (its workspace comes in), and with it every
-# array handed to the distance calls costs atomic increments per call (see jit.jit).
-toi_serial, toi_parallel = twins(_toi_loop, "time_of_impact", error_model="numpy", refcounts=False)
-toi_rerun_serial, toi_rerun_parallel = twins(_rerun_loop, "time_of_impact_rerun", error_model="numpy")
+# The batch loop allocates nothing (its workspace comes in), so it runs without reference counting (jit's
+# default); the second pass allocates EPA's largest room and counts.
+toi_serial, toi_parallel = twins(_toi_loop, "time_of_impact", error_model="numpy")
+toi_rerun_serial, toi_rerun_parallel = twins(_rerun_loop, "time_of_impact_rerun", error_model="numpy", refcounts=True)

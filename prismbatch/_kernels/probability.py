@@ -77,9 +77,7 @@ def _sample_loop(query, L, z, pos_a0, rot_a0, pos_b0, rot_b0, pos_a, rot_a, pos_
                     rot_a[s, i, j] = rot_a0[q, i, j]
 
 
-# No reference counting: the loop allocates nothing, and with it every array passed to the inlined
-# helper costs atomic increments per sample (see jit.jit).
-sample_serial, sample_parallel = twins(_sample_loop, "sample_poses", error_model="numpy", refcounts=False)
+sample_serial, sample_parallel = twins(_sample_loop, "sample_poses", error_model="numpy")
 
 
 @jit(inline="always", error_model="numpy")
@@ -227,4 +225,4 @@ def _count_loop(
         sums[t, 2] = s3
 
 
-count_serial, count_parallel = twins(_count_loop, "count_hits", error_model="numpy", refcounts=False)
+count_serial, count_parallel = twins(_count_loop, "count_hits", error_model="numpy")

@@ -143,3 +143,49 @@ def test_kernels_without_refcounts_keep_no_reference_to_their_arguments():
         col.collide(*poses, parallel=True)
         col.collide_pair(*one)
     assert [sys.getrefcount(x) for x in (*poses, *one, col._a.floats, col._b.ints)] == before
+
+
+def test_kernels_compiled_without_reference_counting_return_no_arrays():
+    # jit compiles without Numba's reference counting unless told otherwise; a function so compiled
+    # that returned an array would hand its caller a reference it does not own (freed too early).
+    # After the main calls (and the helpers Python calls directly), no such overload returns one.
+    import importlib
+    import pkgutil
+
+    import numpy as np
+    from numba.core import types
+    from numba.core.registry import CPUDispatcher
+
+    import prismbatch as pb
+    import prismbatch._kernels as kernels
+    from prismbatch._kernels.batch import unpack
+    from prismbatch._kernels.distance import block_of, workspace
+    from prismbatch.sampling import free_poses
+
+    a, b = pb.Prism.regular(7, 2.0), pb.Prism.regular(9, 2.5)
+    col = pb.Collider(a, b)
+    poses = free_poses(64, np.random.default_rng(0), radius=2.5)
+    col.collide(*poses, contact=True)
+    col.distance(*poses, witness=True)
+    col.collide(*poses, margin=0.1)
+    col.time_of_impact(*poses, np.ones(3), np.ones(3), horizon=1.0, pose=True, contact=True)
+    one = tuple(np.ascontiguousarray(x[0]) for x in poses)
+    col.collide_pair(*one)
+    col.distance(*one, witness=True)
+    col.explain(*one)
+    col.collision_probability(np.zeros(3), np.diag([1.0, -1, -1]), [0, 0, 0.3], np.eye(3), np.eye(6) * 1e-3, seed=1)
+    unpack(col._a.floats, col._a.ints)
+    block_of(workspace(1, 4), 0)
+
+    def holds_array(t):
+        return isinstance(t, types.Array) or (isinstance(t, types.BaseTuple) and any(map(holds_array, t)))
+
+    checked = 0
+    for info in pkgutil.iter_modules(kernels.__path__):
+        mod = importlib.import_module(f"prismbatch._kernels.{info.name}")
+        for name, obj in vars(mod).items():
+            if isinstance(obj, CPUDispatcher) and obj.targetoptions.get("_nrt", True) is False:
+                for cres in obj.overloads.values():
+                    checked += 1
+                    assert not holds_array(cres.signature.return_type), f"{info.name}.{name} returns arrays"
+    assert checked > 20
