@@ -459,6 +459,10 @@ def _kernel_array(x, shape, dtype):
     Read-only inputs (``np.broadcast_to``, frozen arrays) are copied: Numba
     types them apart, so passing them would compile every kernel again.
     """
+    if type(x) is np.ndarray and x.shape == shape and x.dtype == dtype:  # the common case, at no cost
+        flags = x.flags
+        if flags.c_contiguous and flags.writeable:
+            return x
     a = np.ascontiguousarray(np.reshape(x, shape), dtype=dtype)
     return a if a.flags.writeable else a.copy()
 
