@@ -46,8 +46,8 @@ LOOSE_FRACTION = 0.1
 EPS64 = float(np.finfo(np.float64).eps)
 GJK_MAX_ITER = 128
 #: EPA's room in vertices: tried in turn while it runs out (128 hold 99.99 % of 3600-gon pairs; 100,000-gons
-#: need up to ~600); it has 8 faces per vertex. The batch loop holds one workspace of the first per block
-#: and sends the rare pair that runs out of it to a second pass (:func:`pair_distance_any_room`).
+#: need up to ~600); it has 8 faces per vertex. The batch loops hold one workspace of the first per block
+#: and send the rare pair that runs out of it to a second pass with the last.
 EPA_ROOM = (128, 1024, 8192)
 #: A face counts as seen from a new point up to this fraction of the accuracy below its plane: on nearly
 #: coplanar faces (100,000-gons) rounding would otherwise leave an unseen face inside the seen region.
@@ -533,8 +533,8 @@ def pair_distance(P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, rtol, atol, eps, witnes
 @jit(refcounts=True)
 def pair_distance_any_room(P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, rtol, atol, eps, witness, work):
     """:func:`pair_distance` in ``work`` (a block of :func:`workspace` with room ``EPA_ROOM[0]``), then,
-    while EPA runs out of room, again with the larger rooms of :data:`EPA_ROOM` (allocated here: the
-    rare pair; the one-pair path, the batch's second pass and the time of impact call this)."""
+    while EPA runs out of room, again with the larger rooms of :data:`EPA_ROOM` (allocated here, for the
+    rare pair: the one-pair path and the margin's fallback call this)."""
     args = (P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, rtol, atol, eps, witness)
     res = pair_distance(*args, work)
     for room in EPA_ROOM[1:]:
@@ -554,31 +554,33 @@ def _distance_loop(a_floats, a_ints, b_floats, b_ints, poses, rtol, atol, eps, w
     """Every pair of a batch, in as many contiguous blocks as ``work`` has (:func:`workspace`, one per
     block); ``poses``: (pos_a, rot_a, pos_b, rot_b), each of N or 1 rows; ``out``: (distance, status,
     tol, solver), N each; ``wit``: (normal, point_a, point_b), N x 3 or 0 x 3. A pair whose EPA ran out
-    of room has solver EPA_STOPPED: the caller reruns it (:func:`pair_distance_any_room`)."""
+    of room has solver EPA_STOPPED: the caller reruns it (:func:`_rerun_loop`)."""
     avx, avy, aeang, aetab, _, _, aoff, arad, acen = unpack(a_floats, a_ints)
     bvx, bvy, beang, betab, _, _, boff, brad, bcen = unpack(b_floats, b_ints)
     P = (avx, avy, aeang, aetab, bvx, bvy, beang, betab)
-    pos_a, rot_a, pos_b, rot_b = poses
     dist_out, status_out, tol_out, solver_out = out
     normal_out, pa_out, pb_out = wit
-    npa, nra, npb, nrb = pos_a.shape[0], rot_a.shape[0], pos_b.shape[0], rot_b.shape[0]
-    nsa, nsb = arad.shape[0], brad.shape[0]
     n = dist_out.shape[0]
     blocks = work[0].shape[0]
     for bp in prange(blocks):
         blk = np.int64(bp)  # prange's index is unsigned
         ws = block_of(work, blk)
         for i in range(blk * n // blocks, (blk + 1) * n // blocks):
-            ka, kb = min(i, nsa - 1), min(i, nsb - 1)  # a batch of one broadcasts
-            ix = (aoff[ka], aoff[ka + 1] - aoff[ka], boff[kb], boff[kb + 1] - boff[kb])
-            Pa, Ra = pos_a[min(i, npa - 1)], rot_a[min(i, nra - 1)]
-            Pb, Rb = pos_b[min(i, npb - 1)], rot_b[min(i, nrb - 1)]
-            d, t, code, nrm, p = pair_distance(
-                P, ix, acen[ka], bcen[kb], arad[ka], brad[kb], Pa, Ra, Pb, Rb, rtol, atol, eps, witness, ws
-            )
+            d, t, code, nrm, p = _pair(i, P, aoff, arad, acen, boff, brad, bcen, poses, rtol, atol, eps, witness, ws)
             _store(
                 i, d, t, code, nrm, p, witness, dist_out, status_out, tol_out, solver_out, normal_out, pa_out, pb_out
             )
+
+
+@jit(inline="always")
+def _pair(i, P, aoff, arad, acen, boff, brad, bcen, poses, rtol, atol, eps, witness, ws):
+    """:func:`pair_distance` of pair i of a batch in workspace ``ws`` (a batch of one broadcasts by index)."""
+    pos_a, rot_a, pos_b, rot_b = poses
+    ka, kb = min(i, arad.shape[0] - 1), min(i, brad.shape[0] - 1)
+    ix = (aoff[ka], aoff[ka + 1] - aoff[ka], boff[kb], boff[kb + 1] - boff[kb])
+    Pa, Ra = pos_a[min(i, pos_a.shape[0] - 1)], rot_a[min(i, rot_a.shape[0] - 1)]
+    Pb, Rb = pos_b[min(i, pos_b.shape[0] - 1)], rot_b[min(i, rot_b.shape[0] - 1)]
+    return pair_distance(P, ix, acen[ka], bcen[kb], arad[ka], brad[kb], Pa, Ra, Pb, Rb, rtol, atol, eps, witness, ws)
 
 
 @jit(inline="always")
@@ -597,29 +599,21 @@ def _store(i, d, t, code, n, p, witness, dist_out, status_out, tol_out, solver_o
 
 
 def _rerun_loop(a_floats, a_ints, b_floats, b_ints, poses, rtol, atol, eps, witness, pairs, out, wit):
-    """The pairs ``pairs`` (indices) whose EPA ran out of the batch loop's room, with more room."""
+    """The pairs ``pairs`` (indices) whose EPA ran out of the batch loop's room, with EPA's largest room
+    (the same answer as growing it step by step: a room only matters once it is full)."""
     avx, avy, aeang, aetab, _, _, aoff, arad, acen = unpack(a_floats, a_ints)
     bvx, bvy, beang, betab, _, _, boff, brad, bcen = unpack(b_floats, b_ints)
     P = (avx, avy, aeang, aetab, bvx, bvy, beang, betab)
-    pos_a, rot_a, pos_b, rot_b = poses
     dist_out, status_out, tol_out, solver_out = out
     normal_out, pa_out, pb_out = wit
-    npa, nra, npb, nrb = pos_a.shape[0], rot_a.shape[0], pos_b.shape[0], rot_b.shape[0]
-    nsa, nsb = arad.shape[0], brad.shape[0]
     for k in prange(pairs.shape[0]):
         i = pairs[k]
-        ka, kb = min(i, nsa - 1), min(i, nsb - 1)
-        ix = (aoff[ka], aoff[ka + 1] - aoff[ka], boff[kb], boff[kb + 1] - boff[kb])
-        Pa, Ra = pos_a[min(i, npa - 1)], rot_a[min(i, nra - 1)]
-        Pb, Rb = pos_b[min(i, npb - 1)], rot_b[min(i, nrb - 1)]
-        ws = block_of(workspace(1, EPA_ROOM[0]), 0)
-        d, t, code, nrm, p = pair_distance_any_room(
-            P, ix, acen[ka], bcen[kb], arad[ka], brad[kb], Pa, Ra, Pb, Rb, rtol, atol, eps, witness, ws
-        )
+        ws = block_of(workspace(1, EPA_ROOM[-1]), 0)
+        d, t, code, nrm, p = _pair(i, P, aoff, arad, acen, boff, brad, bcen, poses, rtol, atol, eps, witness, ws)
         _store(i, d, t, code, nrm, p, witness, dist_out, status_out, tol_out, solver_out, normal_out, pa_out, pb_out)
 
 
 # The batch loop allocates nothing (its workspace comes in): no reference counting (jit's default); the
-# second pass allocates rooms and counts.
+# second pass allocates EPA's largest room and counts.
 distance_serial, distance_parallel = twins(_distance_loop, "distance", error_model="numpy")
 rerun_serial, rerun_parallel = twins(_rerun_loop, "distance_rerun", error_model="numpy", refcounts=True)
