@@ -528,3 +528,17 @@ def hash_str(s):
     for ch in s.encode():
         h = ((h ^ ch) * 1099511628211) % (1 << 64)
     return h
+
+
+def count_pairs_sent(monkeypatch, module, kernel_name, arg):
+    """Wrap ``module.kernel_name`` (a second-pass kernel) so that each call records how many pairs it got
+    (``len`` of its positional argument ``arg``); returns the list of counts."""
+    sent = []
+    original = getattr(module, kernel_name)
+
+    def counting(*args):
+        sent.append(len(args[arg]))
+        return original(*args)
+
+    monkeypatch.setattr(module, kernel_name, counting)
+    return sent

@@ -30,6 +30,7 @@ from prismbatch.sampling import free_poses
 
 from helpers import (
     bisect_to_contact,
+    count_pairs_sent,
     make_pairs,
     overlapping_pairs,
     pairs_from_rows,
@@ -403,16 +404,8 @@ def test_pairs_out_of_the_batch_room_are_rerun(monkeypatch, parallel):
     pa, ra, pbb, rb = free_poses(400, rng, radius=2.5)
     poses = (pa, ra, pa + 0.2 * (pbb - pa), rb)  # mostly deep overlaps
     want = col.distance(*poses, witness=True, parallel=parallel)
-    rerun = []
-    kern_name = "rerun_parallel" if parallel else "rerun_serial"
-    original = getattr(dist_mod, kern_name)
-
-    def counting(*args):
-        rerun.append(len(args[9]))  # the pairs sent to the second pass
-        return original(*args)
-
     monkeypatch.setattr(dist_mod, "EPA_ROOM", (6,))
-    monkeypatch.setattr(dist_mod, kern_name, counting)
+    rerun = count_pairs_sent(monkeypatch, dist_mod, "rerun_parallel" if parallel else "rerun_serial", 9)
     got = col.distance(*poses, witness=True, parallel=parallel)
     assert rerun and rerun[0] > 100 and (want.solver == 1).sum() > 200
     for name in ("distance", "status", "tol", "solver", "normal", "point_a", "point_b"):

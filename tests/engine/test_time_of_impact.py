@@ -12,6 +12,8 @@ import prismbatch as pb
 from prismbatch.motion import CLEAR, CONTACT, UNDECIDED, time_of_impact
 from prismbatch.sampling import free_poses
 
+from helpers import count_pairs_sent
+
 DOWN = np.diag([1.0, -1.0, -1.0])  # a's axis points down: a's body is z <= 0 below its end face at z = 0
 SQUARE = pb.Prism.regular(4, math.sqrt(2.0), phase=math.pi / 4)  # the square [-1, 1]^2
 
@@ -558,16 +560,8 @@ def test_pairs_out_of_the_batch_room_are_rerun(monkeypatch, parallel):
     v, w = rng.normal(size=(300, 3)), rng.normal(size=(300, 3))
     kw = dict(horizon=1.0, pose=True, contact=True, parallel=parallel)
     want = col.time_of_impact(pa, ra, pbb, rb, v, w, **kw)
-    rerun = []
-    kern_name = "toi_rerun_parallel" if parallel else "toi_rerun_serial"
-    original = getattr(motion_mod, kern_name)
-
-    def counting(*args):
-        rerun.append(len(args[10]))  # the pairs sent to the second pass
-        return original(*args)
-
     monkeypatch.setattr(motion_mod, "EPA_ROOM", (6,))
-    monkeypatch.setattr(motion_mod, kern_name, counting)
+    rerun = count_pairs_sent(monkeypatch, motion_mod, "toi_rerun_parallel" if parallel else "toi_rerun_serial", 10)
     got = col.time_of_impact(pa, ra, pbb, rb, v, w, **kw)
     assert rerun and rerun[0] > 50 and (want.time == 0).sum() > 50
     for name, value in want.columns().items():
