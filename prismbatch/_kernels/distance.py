@@ -550,6 +550,14 @@ def signed_status(d, tol):
     return TOUCHING if abs(d) <= tol else (SEPARATED if d > tol else PENETRATING)
 
 
+@jit  # not inlined: Numba's array analysis of the parallel margin loop fails on it inlined
+def pair_index(i, arad, aoff, brad, boff, npos_a, nrot_a, npos_b, nrot_b):
+    """Pair i's shape rows ka, kb, polygon ranges ix and pose rows (a batch of one broadcasts)."""
+    ka, kb = min(i, arad.shape[0] - 1), min(i, brad.shape[0] - 1)
+    ix = (aoff[ka], aoff[ka + 1] - aoff[ka], boff[kb], boff[kb + 1] - boff[kb])
+    return ka, kb, ix, (min(i, npos_a - 1), min(i, nrot_a - 1), min(i, npos_b - 1), min(i, nrot_b - 1))
+
+
 def _distance_loop(a_floats, a_ints, b_floats, b_ints, poses, rtol, atol, eps, witness, work, out, wit):
     """Every pair of a batch, in as many contiguous blocks as ``work`` has (:func:`workspace`, one per
     block); ``poses``: (pos_a, rot_a, pos_b, rot_b), each of N or 1 rows; ``out``: (distance, status,
@@ -576,11 +584,10 @@ def _distance_loop(a_floats, a_ints, b_floats, b_ints, poses, rtol, atol, eps, w
 def _pair(i, P, aoff, arad, acen, boff, brad, bcen, poses, rtol, atol, eps, witness, ws):
     """:func:`pair_distance` of pair i of a batch in workspace ``ws`` (a batch of one broadcasts by index)."""
     pos_a, rot_a, pos_b, rot_b = poses
-    ka, kb = min(i, arad.shape[0] - 1), min(i, brad.shape[0] - 1)
-    ix = (aoff[ka], aoff[ka + 1] - aoff[ka], boff[kb], boff[kb + 1] - boff[kb])
-    Pa, Ra = pos_a[min(i, pos_a.shape[0] - 1)], rot_a[min(i, rot_a.shape[0] - 1)]
-    Pb, Rb = pos_b[min(i, pos_b.shape[0] - 1)], rot_b[min(i, rot_b.shape[0] - 1)]
-    return pair_distance(P, ix, acen[ka], bcen[kb], arad[ka], brad[kb], Pa, Ra, Pb, Rb, rtol, atol, eps, witness, ws)
+    ka, kb, ix, r = pair_index(i, arad, aoff, brad, boff, pos_a.shape[0], rot_a.shape[0], pos_b.shape[0],
+                               rot_b.shape[0])  # fmt: skip
+    return pair_distance(P, ix, acen[ka], bcen[kb], arad[ka], brad[kb], pos_a[r[0]], rot_a[r[1]], pos_b[r[2]],
+                         rot_b[r[3]], rtol, atol, eps, witness, ws)  # fmt: skip
 
 
 @jit(inline="always")

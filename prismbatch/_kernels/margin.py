@@ -35,7 +35,16 @@ import numpy as np
 from numba import prange
 
 from .batch import centres_world, pair_tolerance, unpack, use_parallel
-from .distance import BOX, EPA_ROOM, GJK_MAX_ITER, block_of, closest, pair_distance_any_room, workspace
+from .distance import (
+    BOX,
+    EPA_ROOM,
+    GJK_MAX_ITER,
+    block_of,
+    closest,
+    pair_distance_any_room,
+    pair_index,
+    workspace,
+)
 from .jit import first_call, jit, twins
 from .minkowski import cone_box, support
 from .planar import point_polygon_distance
@@ -120,14 +129,6 @@ def pair_margin(P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, margin, rtol, atol, eps, 
     return False, UNDECIDED
 
 
-@jit
-def _pair_index(i, arad, aoff, brad, boff, npos_a, nrot_a, npos_b, nrot_b):
-    """Pair i's shape rows ka, kb, polygon ranges ix and pose rows (a batch of one broadcasts)."""
-    ka, kb = min(i, arad.shape[0] - 1), min(i, brad.shape[0] - 1)
-    ix = (aoff[ka], aoff[ka + 1] - aoff[ka], boff[kb], boff[kb + 1] - boff[kb])
-    return ka, kb, ix, (min(i, npos_a - 1), min(i, nrot_a - 1), min(i, npos_b - 1), min(i, nrot_b - 1))
-
-
 def _margin_loop(a_floats, a_ints, b_floats, b_ints, poses, margin, rtol, atol, eps, work, hit_out, code_out):
     """Every pair of a batch; ``poses``: (pos_a, rot_a, pos_b, rot_b), each of N or 1 rows; ``work``:
     GJK's workspace (W, I, lam) per block of :data:`BLOCK` pairs, ceil(N / BLOCK) x 8 (x 3) each."""
@@ -141,7 +142,7 @@ def _margin_loop(a_floats, a_ints, b_floats, b_ints, poses, margin, rtol, atol, 
         blk = np.int64(bp)  # prange's index is unsigned
         W, I, lam = W_all[blk], I_all[blk], lam_all[blk]
         for i in range(blk * BLOCK, min(blk * BLOCK + BLOCK, n)):
-            ka, kb, ix, r = _pair_index(i, arad, aoff, brad, boff, pos_a.shape[0], rot_a.shape[0], pos_b.shape[0],
+            ka, kb, ix, r = pair_index(i, arad, aoff, brad, boff, pos_a.shape[0], rot_a.shape[0], pos_b.shape[0],
                                         rot_b.shape[0])  # fmt: skip
             hit, code = pair_margin(P, ix, acen[ka], bcen[kb], arad[ka], brad[kb], pos_a[r[0]], rot_a[r[1]],
                                     pos_b[r[2]], rot_b[r[3]], margin, rtol, atol, eps, W, I, lam, avang,
@@ -161,7 +162,7 @@ def _fallback_loop(a_floats, a_ints, b_floats, b_ints, poses, margin, rtol, atol
     pos_a, rot_a, pos_b, rot_b = poses
     for k in prange(pairs.shape[0]):
         i = pairs[k]
-        ka, kb, ix, r = _pair_index(i, arad, aoff, brad, boff, pos_a.shape[0], rot_a.shape[0], pos_b.shape[0],
+        ka, kb, ix, r = pair_index(i, arad, aoff, brad, boff, pos_a.shape[0], rot_a.shape[0], pos_b.shape[0],
                                     rot_b.shape[0])  # fmt: skip
         work = block_of(workspace(1, EPA_ROOM[0]), 0)
         d = pair_distance_any_room(P, ix, acen[ka], bcen[kb], arad[ka], brad[kb], pos_a[r[0]], rot_a[r[1]],

@@ -45,7 +45,18 @@ import numpy as np
 from numba import prange
 
 from .batch import centres_world, unpack
-from .distance import ACC_EPS, BOX, EPA_ROOM, EPA_STOPPED, EPS64, LOOSE_FRACTION, block_of, pair_distance, workspace
+from .distance import (
+    ACC_EPS,
+    BOX,
+    EPA_ROOM,
+    EPA_STOPPED,
+    EPS64,
+    LOOSE_FRACTION,
+    block_of,
+    pair_distance,
+    pair_index,
+    workspace,
+)
 from .jit import jit, twins
 from .planar import extreme_vertex, slab_support
 
@@ -378,10 +389,9 @@ def _rerun_loop(a_floats, a_ints, b_floats, b_ints, poses, motion, rtol, atol, e
 def _one(i, P, aoff, arad, acen, boff, brad, bcen, pos_a, rot_a, pos_b, rot_b, vel, omg, horizon, rtol, atol, eps,
          max_iter, ws, rerun, time_out, status_out, iter_out, dist_out, pos_out, rot_out, contact):  # fmt: skip
     """Pair i of the batch, into row i of the outputs (a batch of one broadcasts by index)."""
-    ka, kb = min(i, arad.shape[0] - 1), min(i, brad.shape[0] - 1)
-    ix = (aoff[ka], aoff[ka + 1] - aoff[ka], boff[kb], boff[kb + 1] - boff[kb])
-    Pa, Ra = pos_a[min(i, pos_a.shape[0] - 1)], rot_a[min(i, rot_a.shape[0] - 1)]
-    Pb, Rb = pos_b[min(i, pos_b.shape[0] - 1)], rot_b[min(i, rot_b.shape[0] - 1)]
+    ka, kb, ix, r = pair_index(i, arad, aoff, brad, boff, pos_a.shape[0], rot_a.shape[0], pos_b.shape[0],
+                               rot_b.shape[0])  # fmt: skip
+    Pa, Ra, Pb, Rb = pos_a[r[0]], rot_a[r[1]], pos_b[r[2]], rot_b[r[3]]
     v, w, h = vel[min(i, vel.shape[0] - 1)], omg[min(i, omg.shape[0] - 1)], horizon[min(i, horizon.shape[0] - 1)]
     t, st, it, d, p = pair_time_of_impact(
         P, ix, acen[ka], bcen[kb], arad[ka], brad[kb], Pa, Ra, Pb, Rb, v, w, h, rtol, atol, eps, max_iter, ws, rerun
