@@ -375,6 +375,13 @@ class _Run:
         self.col, self.poses, self.L, self.z, self.rel, self.parallel = col, poses, L, z, rel_error, parallel
         self.n, self.k = L.shape[0], L.shape[1]
         self.active = np.abs(L).max(axis=1) > 0  # (n, k): the noise components that move something
+        dt = col.dtype  # what the sampling loop takes of the shapes and the tolerances, once per call
+        a, b = (
+            as_prism_set(s, name, dt)[0].kernel_arrays(dt)
+            for s, name in ((col.shape_a, "shape_a"), (col.shape_b, "shape_b"))
+        )
+        self.shapes = (a.floats, a.ints, b.floats, b.ints)
+        self.limits = (col.rtol, col.atol, float(np.finfo(dt).eps), SUPPORTED_RANGE[dt.name][1])
 
     def sample_poses(self, query, z):
         """Poses of the standard-normal noise ``z`` (m, k) of queries ``query`` (m,): (pos_a, rot_a, pos_b, rot_b)."""
@@ -537,20 +544,16 @@ class _Run:
 
     def _count(self, query, start, count, keys, mixtures):
         """The sampling loop on tasks ``(query, start, count)``: ``(hits, shift, sums)`` per task."""
-        col, T = self.col, len(query)
-        dt = col.dtype
-        a = as_prism_set(col.shape_a, "shape_a", dt)[0].kernel_arrays(dt)
-        b = as_prism_set(col.shape_b, "shape_b", dt)[0].kernel_arrays(dt)
-        max_magnitude = SUPPORTED_RANGE[dt.name][1]
+        T, dt = len(query), self.col.dtype
+        max_magnitude = self.limits[3]
         scratch = np.empty((T, self.k)), np.empty((T, 3), dt), np.empty((T, 3, 3), dt), np.empty((T, 3), dt)
         scratch += (np.empty((T, 3, 3), dt),)
         hits, shift, sums, bad = np.empty(T, np.int64), np.empty(T), np.empty((T, 3)), np.empty(T, np.int64)
         parallel = use_parallel(self.parallel, int(count.sum()))
         kern = count_parallel if parallel else count_serial
         # fmt: off
-        first_call((kern, dt), kern, a.floats, a.ints, b.floats, b.ints, query, start, count, keys, self.L,
-                   *self.poses, *mixtures, self.active, DEFENSIVE, SPREAD, *ZIGGURAT, col.rtol, col.atol,
-                   float(np.finfo(dt).eps), max_magnitude, *scratch, hits, shift, sums, bad)
+        first_call((kern, dt), kern, *self.shapes, query, start, count, keys, self.L, *self.poses, *mixtures,
+                   self.active, DEFENSIVE, SPREAD, *ZIGGURAT, *self.limits, *scratch, hits, shift, sums, bad)
         # fmt: on
         if (bad >= 0).any():
             t = int(np.argmax(bad >= 0))
