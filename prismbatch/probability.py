@@ -512,8 +512,10 @@ class _Run:
 
     def _packed(self, mix, how):
         """The mixtures of the queries sampled by importance as the sampling loop takes them:
-        ``(start (n + 1,), mu (J, k), log pi (J,))``, query i's centres at ``start[i]:start[i + 1]``
-        (none for the others, which draw from the nominal distribution)."""
+        ``(start (n + 1,), mu (J, k), log pi (J,), cum (J,))``, query i's centres at
+        ``start[i]:start[i + 1]`` (none for the others, which draw from the nominal distribution);
+        ``cum`` is the mixture's cumulative weight up to and including each centre, after the
+        defensive part (the loop picks a centre by it)."""
         chosen = [i for i in range(self.n) if how[i] == IMPORTANCE and i in mix]
         count = np.zeros(self.n + 1, np.int64)
         for i in chosen:
@@ -521,9 +523,11 @@ class _Run:
         mu = np.zeros((int(count.sum()), self.k))
         lpi = np.zeros(len(mu))
         start = np.cumsum(count)
+        cum = np.zeros(len(mu))
         for i in chosen:
             mu[start[i] : start[i + 1]], lpi[start[i] : start[i + 1]] = mix[i][0], mix[i][1]
-        return start, mu, lpi
+            cum[start[i] : start[i + 1]] = DEFENSIVE + (1.0 - DEFENSIVE) * np.cumsum(np.exp(mix[i][1]))
+        return start, mu, lpi, cum
 
     def _round(self, todo, keys, drawn, state, mixtures):
         """Draw and test one round of every query in ``todo`` (``{query: samples}``), adding it to

@@ -81,31 +81,23 @@ sample_serial, sample_parallel = twins(_sample_loop, "sample_poses", error_model
 
 
 @jit(inline="always", error_model="numpy")
-def _logaddexp(x, y):
-    m = max(x, y)
-    if m == -math.inf:
-        return m
-    return m + math.log1p(math.exp(-abs(x - y)))
-
-
-@jit(inline="always", error_model="numpy")
-def _draw_proposal(state, z, t, q, j0, j1, mu, lpi, active, defensive, spread, log_spread_n):
+def _draw_proposal(state, z, t, q, j0, j1, mu, lpi, cum, active, spread, consts):
     """Move the standard normals ``z[t]`` to a draw of query q's defensive mixture and return
     ``(log phi(z) / q(z), state)``.
 
-    The mixture is ``defensive N(0, I) + (1 - defensive) sum_j pi_j N(mu_j, S)`` over centres
-    ``j0 .. j1 - 1`` (``log pi_j = lpi[j]``), ``S`` ``spread^2`` on the query's active noise
-    components and 1 on the others (which then cancel from the weight); its weights are at
-    most ``1 / defensive``. The tests compare this with a NumPy form of the same formulas.
+    The mixture is ``d N(0, I) + (1 - d) sum_j pi_j N(mu_j, S)`` over centres ``j0 .. j1 - 1``
+    (``log pi_j = lpi[j]``; ``cum[j] = d + (1 - d) (pi_j0 + ... + pi_j)``), ``S`` ``spread^2``
+    on the query's active noise components and 1 on the others (which then cancel from the
+    weight); its weights are at most ``1 / d``. ``consts``: ``(d, log d, log(1 - d),
+    0.5 / spread^2, n_active log spread)``. The tests compare this with a NumPy form of the
+    same formulas.
     """
+    defensive, log_d, log_1md, half_inv_s2, log_spread_n = consts
     k = z.shape[1]
     w, state = uniform(state)
     if w >= defensive:  # centre j by its weight; the nominal N(0, I) below ``defensive``
-        acc, j = defensive, j0
-        while j < j1 - 1:
-            acc += (1.0 - defensive) * math.exp(lpi[j])
-            if w < acc:
-                break
+        j = j0
+        while j < j1 - 1 and w >= cum[j]:
             j += 1
         for c in range(k):
             if active[q, c]:
@@ -114,16 +106,27 @@ def _draw_proposal(state, z, t, q, j0, j1, mu, lpi, active, defensive, spread, l
     for c in range(k):
         if active[q, c]:
             zz += z[t, c] * z[t, c]
-    lr = -math.inf
+    # log sum_j pi_j exp(-|z - mu_j|^2 / 2 spread^2) in one pass (running maximum m, sum s of
+    # exp(e_j - m)). A term below exp(-60) of the largest is not added: it could not change
+    # s >= 1 in double precision, and skipping it saves its exponential.
+    m, acc = -math.inf, 0.0
     for j in range(j0, j1):
         d2 = 0.0
         for c in range(k):
             if active[q, c]:
                 e = z[t, c] - mu[j, c]
                 d2 += e * e
-        lr = _logaddexp(lr, lpi[j] - 0.5 * d2 / (spread * spread))
-    lr += 0.5 * zz - log_spread_n
-    return -_logaddexp(math.log(defensive), math.log1p(-defensive) + lr), state
+        e = lpi[j] - half_inv_s2 * d2
+        if e > m:
+            acc = (acc * math.exp(m - e) if m - e > -60.0 else 0.0) + 1.0
+            m = e
+        elif e - m > -60.0:
+            acc += math.exp(e - m)
+    lr = (m + math.log(acc) if acc != 1.0 else m) + 0.5 * zz - log_spread_n  # one term: no log needed
+    # -log(d + (1 - d) exp(lr)), as a log-sum-exp
+    x, y = log_d, log_1md + lr
+    top = max(x, y)
+    return -(top + math.log1p(math.exp(-abs(x - y)))), state
 
 
 def _count_loop(
@@ -143,6 +146,7 @@ def _count_loop(
     mix_start,
     mu,
     lpi,
+    cum,
     active,
     defensive,
     spread,
@@ -171,6 +175,8 @@ def _count_loop(
     finite (-1 if none)."""
     a, b = unpack(a_floats, a_ints), unpack(b_floats, b_ints)
     k = z.shape[1]
+    half_inv_s2 = 0.5 / (spread * spread)
+    log_d, log_1md = math.log(defensive), math.log1p(-defensive)
     for tp in prange(task_query.shape[0]):
         t = np.int64(tp)
         q = task_query[t]
@@ -178,7 +184,7 @@ def _count_loop(
         n_active = 0
         for c in range(k):
             n_active += active[q, c]
-        log_spread_n = n_active * math.log(spread)
+        consts = (defensive, log_d, log_1md, half_inv_s2, n_active * math.log(spread))
         for j in range(3):  # a's nominal pose, for six-component noise
             pos_a[t, j] = pos_a0[q, j]
             for i in range(3):
@@ -194,7 +200,7 @@ def _count_loop(
                     z[t, c] = 0.0
             lw = 0.0
             if j1 > j0:
-                lw, state = _draw_proposal(state, z, t, q, j0, j1, mu, lpi, active, defensive, spread, log_spread_n)
+                lw, state = _draw_proposal(state, z, t, q, j0, j1, mu, lpi, cum, active, spread, consts)
             _perturb(L, z, q, t, 0, pos_b0, rot_b0, pos_b, rot_b)
             if k == 12:
                 _perturb(L, z, q, t, 6, pos_a0, rot_a0, pos_a, rot_a)
