@@ -40,6 +40,7 @@ from ._kernels.motion import (
     toi_rerun_serial,
     toi_serial,
 )
+from .checks import integer
 from .collide import collider_for
 from .results import BatchResult
 
@@ -271,11 +272,7 @@ def impact_times(
     vel = _vectors(velocity, "velocity")
     omg = np.zeros((1, 3)) if angular_velocity is None else _vectors(angular_velocity, "angular_velocity")
     hor = _horizons(horizon)
-    max_iter = DEFAULT_MAX_ITER if max_iter is None else max_iter
-    if isinstance(max_iter, (bool, np.bool_)) or not isinstance(max_iter, (int, np.integer)):
-        raise TypeError(f"max_iter must be an integer, got {type(max_iter).__name__} {max_iter!r}")
-    if not 1 <= max_iter <= 2**31 - 1:
-        raise ValueError(f"max_iter must be >= 1, got {max_iter}")
+    max_iter = integer(DEFAULT_MAX_ITER if max_iter is None else max_iter, "max_iter", 1, 2**31 - 1)
     n = _batch_size(n, vel.shape[0], omg.shape[0], hor.shape[0])
     time = np.empty(n)
     status = np.empty(n, dtype=np.int8)

@@ -76,7 +76,7 @@ from ._kernels.batch import use_parallel
 from ._kernels.jit import first_call
 from ._kernels.probability import count_parallel, count_serial, sample_parallel, sample_serial
 from ._kernels.streams import ZIGGURAT
-from .checks import as_real_array, check_flag, real_scalar
+from .checks import as_real_array, check_flag, integer, real_scalar
 from .config import SUPPORTED_RANGE
 from .importance import DEFENSIVE, SPREAD, Tally, centres, design_points, design_starts
 from .poses import as_pose, broadcast_poses
@@ -286,16 +286,11 @@ def estimate(col, pos_a, rot_a, pos_b, rot_b, cov_b, *, cov_a, rel_error, confid
     confidence = real_scalar(confidence, "confidence", 0.0, 1.0)
     if not 0.0 < confidence < 1.0:
         raise ValueError(f"confidence must be in (0, 1), got {confidence!r}")
-    max_samples = DEFAULT_MAX_SAMPLES if max_samples is None else max_samples
-    if isinstance(max_samples, (bool, np.bool_)) or not isinstance(max_samples, (int, np.integer)) or max_samples < 1:
-        raise ValueError(f"max_samples must be an integer >= 1, got {max_samples!r}")
+    max_samples = integer(DEFAULT_MAX_SAMPLES if max_samples is None else max_samples, "max_samples", 1)
     if method not in _METHOD_NAMES:
         raise ValueError(f"method must be one of {_METHOD_NAMES}, got {method!r}")
     check_flag(parallel, "parallel", allow_none=True)
-    if seed is None:
-        seed = int(np.random.SeedSequence().entropy)
-    elif isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ValueError(f"seed must be None or an integer >= 0, got {seed!r}")
+    seed = int(np.random.SeedSequence().entropy) if seed is None else integer(seed, "seed", 0)
     pa, ra = as_pose(pos_a, rot_a, quat_order=quat_order, name="a")
     pb, rb = as_pose(pos_b, rot_b, quat_order=quat_order, name="b")
     n_cov = [np.shape(c)[0] for c in (cov_b, cov_a) if c is not None and np.ndim(c) == 3]

@@ -274,8 +274,10 @@ def test_collider_method_matches_function():
         (dict(cov_b=np.eye(6), rel_error=0), ValueError, "rel_error"),
         (dict(cov_b=np.eye(6), confidence=1.0), ValueError, "confidence"),
         (dict(cov_b=np.eye(6), max_samples=0), ValueError, "max_samples"),
+        (dict(cov_b=np.eye(6), max_samples=1e4), TypeError, "max_samples must be an integer"),
         (dict(cov_b=np.eye(6), method="fast"), ValueError, "method"),
         (dict(cov_b=np.eye(6), seed=-1), ValueError, "seed"),
+        (dict(cov_b=np.eye(6), seed=True), TypeError, "seed must be an integer"),
         (dict(cov_b=np.eye(6), query_index=[0, 1, 2]), ValueError, "query_index"),
     ],
 )
