@@ -11,7 +11,10 @@ and divides by the floor measured on the same pairs in the same run:
 * GJK pairs: facing poses that reach the planar GJK (case 6);
 * the facing mix, and fully random (free) poses;
 
-at 36, 3600 and 100,000 vertices. Then the latency of one query
+at 36, 3600 and 100,000 vertices, on 200,000 pairs (their poses, 38 MB, stay near the 32 MB
+cache of the machine the README's figures come from) and, at 36 and 3600 vertices, on
+2,000,000 pairs (384 MB: every pose comes from main memory, as in a bulk run, and the floor
+is then bound by memory, not by arithmetic). Then the latency of one query
 (``collide_pair``, ``Collider.collide`` and ``pb.collide`` on one plain pair,
 against a trivial ``@njit`` call taking the same four arrays), two threads
 against one on 10^6 pairs, status only against contacts, float32 against
@@ -43,6 +46,7 @@ from prismbatch.lab.timing import stats, threads, timed_loops
 from prismbatch.sampling import facing_poses, free_poses
 
 RADIUS_A, RADIUS_B = 2.0, 2.5
+BULK_PAIRS = 2_000_000  # poses of 384 MB: well beyond the caches of a server CPU
 
 
 @numba.njit(cache=True)
@@ -90,7 +94,16 @@ def kernel_rows(n_vertices, n_pairs, repeats, rng):
         out = np.empty(n, dtype=np.bool_)
         t_floor = _per_pair_ns(lambda p=poses, o=out: _floor_loop(*p, o), n, repeats)
         t_pb = _per_pair_ns(lambda p=poses: col.collide(*p, parallel=False), n, repeats)
-        rows.append({"vertices": n_vertices, "set": name, "pairs": n, "floor_ns": t_floor, "prismbatch_ns": t_pb})
+        rows.append(
+            {
+                "vertices": n_vertices,
+                "set": name,
+                "pairs": n,
+                "pose_mb": sum(x.nbytes for x in poses) / 1e6,
+                "floor_ns": t_floor,
+                "prismbatch_ns": t_pb,
+            }
+        )
     return rows
 
 
@@ -188,11 +201,14 @@ def prismset_build(n_polygons, rng):
 
 
 def markdown(res):
-    L = ["| vertices | pose set | pairs | floor (ns/pair) | prismbatch 1 thread (ns/pair) | ratio |", "|---" * 6 + "|"]
+    L = [
+        "| vertices | pose set | pairs | poses (MB) | floor (ns/pair) | prismbatch 1 thread (ns/pair) | ratio |",
+        "|---" * 7 + "|",
+    ]
     for r in res["kernel"]:
         L.append(
-            f"| {r['vertices']} | {r['set']} | {r['pairs']} | {fmt(r['floor_ns'])} | {fmt(r['prismbatch_ns'])} | "
-            f"{fmt(r['prismbatch_ns'] / r['floor_ns'], '.1f')}x |"
+            f"| {r['vertices']} | {r['set']} | {r['pairs']} | {fmt(r['pose_mb'], '.0f')} | {fmt(r['floor_ns'])} | "
+            f"{fmt(r['prismbatch_ns'])} | {fmt(r['prismbatch_ns'] / r['floor_ns'], '.1f')}x |"
         )
     lat = res["latency_us"]
     base = lat["Collider.collide_pair"]
@@ -225,11 +241,13 @@ def main(argv=None):
     args = ap.parse_args(argv)
     rep = args.repeats or (3 if args.quick else 7)
     rng = np.random.default_rng(args.seed)
-    sizes = (36, 3600) if args.quick else (36, 3600, 100_000)
-    n_pairs = 20_000 if args.quick else 200_000
+    if args.quick:
+        runs = [(36, 20_000), (3600, 20_000)]
+    else:  # in cache, and from main memory (BULK_PAIRS) where a run stays short
+        runs = [(36, 200_000), (36, BULK_PAIRS), (3600, 200_000), (3600, BULK_PAIRS), (100_000, 200_000)]
     res = {"kernel": []}
-    for n in sizes:
-        print(f"kernel rows at {n} vertices ...", file=sys.stderr)
+    for n, n_pairs in runs:
+        print(f"kernel rows at {n} vertices, {n_pairs} pairs ...", file=sys.stderr)
         with threads(1):
             res["kernel"] += kernel_rows(n, n_pairs, rep, rng)
     print("latency ...", file=sys.stderr)
