@@ -24,6 +24,29 @@ from .batch import pair_of_sets, unpack
 from .jit import jit, twins
 from .streams import normal, sample_state, uniform
 
+# Taylor coefficients in u = t^2 of sin(t) / t and (1 - cos t) / t^2, highest first, to the term
+# that falls below 1e-19 for t <= 1 (the sampled rotations are mostly smaller).
+_SINC_SERIES = tuple((-1.0) ** k / math.factorial(2 * k + 1) for k in range(9, -1, -1))
+_COSC_SERIES = tuple((-1.0) ** k / math.factorial(2 * k + 2) for k in range(9, -1, -1))
+
+
+@jit(inline="always", error_model="numpy")
+def rodrigues_coefficients(u):
+    """``(sin t / t, (1 - cos t) / t^2)`` of the angle ``t = sqrt(u)``, u >= 0.
+
+    For t <= 1 their series in u (no square root, division or sine, whose latency held up the
+    sampling loop); beyond, from the sine and cosine of t / 2 (no digits lost either way).
+    """
+    if u <= 1.0:
+        a = b = 0.0
+        for k in range(len(_SINC_SERIES)):
+            a = a * u + _SINC_SERIES[k]
+            b = b * u + _COSC_SERIES[k]
+        return a, b
+    t = math.sqrt(u)
+    h = math.sin(0.5 * t) / (0.5 * t)
+    return h * math.cos(0.5 * t), 0.5 * h * h
+
 
 @jit(inline="always", error_model="numpy")
 def _perturb(L, z, q, s, row, pos0, rot0, pos, rot):
@@ -38,17 +61,9 @@ def _perturb(L, z, q, s, row, pos0, rot0, pos, rot):
         tx += L[q, row + 3, c] * zc
         ty += L[q, row + 4, c] * zc
         tz += L[q, row + 5, c] * zc
-    t = math.sqrt(tx * tx + ty * ty + tz * tz)
-    # Rodrigues: E = I + a K + b K^2, K = [theta]x, a = sin(t) / t, b = (1 - cos t) / t^2, both
-    # from the sine and cosine of t / 2 (one sincos; small angles lose no digits).
-    if t > 0.0:
-        sh, ch = math.sin(0.5 * t), math.cos(0.5 * t)
-        h = sh / (0.5 * t)
-        a = h * ch
-        b = 0.5 * h * h
-    else:
-        a, b = 1.0, 0.5
+    # Rodrigues: E = I + a K + b K^2, K = [theta]x, a = sin(t) / t, b = (1 - cos t) / t^2
     xx, yy, zz = tx * tx, ty * ty, tz * tz
+    a, b = rodrigues_coefficients(xx + yy + zz)
     e00, e11, e22 = 1.0 - b * (yy + zz), 1.0 - b * (xx + zz), 1.0 - b * (xx + yy)
     e01, e10 = b * tx * ty - a * tz, b * tx * ty + a * tz
     e02, e20 = b * tx * tz + a * ty, b * tx * tz - a * ty

@@ -14,7 +14,7 @@ from scipy import integrate, stats
 from scipy.spatial.transform import Rotation
 
 import prismbatch as pb
-from prismbatch._kernels.probability import sample_serial
+from prismbatch._kernels.probability import rodrigues_coefficients, sample_serial
 from prismbatch._kernels.streams import ZIGGURAT
 from prismbatch.collide import pair_scale_tolerance
 from prismbatch.importance import DEFENSIVE, SPREAD, centres, design_points, design_starts, hall_interval
@@ -78,6 +78,29 @@ def test_sample_kernel_matches_reference(k):
         xa = x[6:] if k == 12 else np.zeros(6)
         np.testing.assert_allclose(out[0][s], pos_a0[q[s]] + xa[:3], atol=1e-14)
         np.testing.assert_allclose(out[1][s], expm_reference(xa[3:]) @ rot_a0[q[s]], atol=1e-12)
+
+
+def _series_reference(u, terms=40):
+    """sin(t) / t and (1 - cos t) / t^2 of t = sqrt(u) from 40 terms of their series in exact rationals."""
+    from fractions import Fraction
+
+    a = b = Fraction(0)
+    power = Fraction(1)
+    for k in range(terms):
+        a += (-1) ** k * power / math.factorial(2 * k + 1)
+        b += (-1) ** k * power / math.factorial(2 * k + 2)
+        power *= Fraction(u)
+    return float(a), float(b)
+
+
+def test_rodrigues_coefficients_to_an_ulp_or_two():
+    """Both branches (the series up to t = 1, the half-angle sine beyond) against exact sums."""
+    rng = np.random.default_rng(3)
+    us = [0.0, 1e-300, 1e-20, 1e-8, 0.25, 1.0 - 1e-12, 1.0, np.nextafter(1.0, 2.0), 1.5, 4.0]
+    us += list(rng.uniform(0, 1, 300)) + list(rng.uniform(1, 4, 100)) + list(10 ** rng.uniform(-20, 0, 100))
+    for u in us:
+        got, want = rodrigues_coefficients(float(u)), _series_reference(float(u))
+        np.testing.assert_allclose(got, want, rtol=4.5e-16, atol=0)
 
 
 def _reference_sample(key, u, L, active, mix, poses):
