@@ -37,12 +37,14 @@ DOWN = np.diag([1.0, -1.0, -1.0])
 FACING_COV = np.diag([0.05**2, 0.05**2, 0.1**2, 0.0, 0.0, 0.1**2])
 LEVELS = {1e-2: 0.232635, 1e-4: 0.371902, 1e-6: 0.475342}  # height giving p = Phi(-height / 0.1)
 ISO = np.eye(6) * 1e-2  # 0.1 in every translation and rotation component
-#: Isotropic cases: (polygon, height of b, p, 95 % interval of p) from plain sampling
-#: (hits / samples: squares 217726 / 4e8, triangles 69965 / 2e8, 12-gons 199740 / 2e8).
+#: Isotropic cases: (polygon, height of b, p, 95 % interval of p) from plain sampling, 2e9 samples
+#: each, seed 12345 (hits: squares 1087488, triangles 703927, 12-gons 1997839). The earlier
+#: references of 2-4e8 samples had the triangles' p 0.6 % low (1.6 of their standard errors),
+#: which alone pulled that case's measured coverage down.
 REFERENCES = {
-    "squares": (SQ, 0.5, 5.44315e-4, (5.4203e-4, 5.4660e-4)),
-    "triangles": (pb.Prism.regular(3, 1.0), 0.5, 3.49825e-4, (3.4723e-4, 3.5242e-4)),
-    "12-gons": (pb.Prism.regular(12, 1.0), 0.5, 9.9870e-4, (9.9432e-4, 1.00308e-3)),
+    "squares": (SQ, 0.5, 5.437443e-4, (5.427236e-4, 5.447669e-4)),
+    "triangles": (pb.Prism.regular(3, 1.0), 0.5, 3.519637e-4, (3.511426e-4, 3.527867e-4)),
+    "12-gons": (pb.Prism.regular(12, 1.0), 0.5, 9.989200e-4, (9.975365e-4, 1.0003054e-3)),
 }
 
 
