@@ -260,3 +260,13 @@ class StreamReference:
                         return -(r + xx) if negative else r + xx
             elif (f[i - 1] - f[i]) * self.uniform() + f[i] < math.exp(-0.5 * x * x):
                 return x
+
+
+def rodrigues(w, t):
+    """exp(t [w]x), written independently of the kernels (matrix exponential of the skew matrix)."""
+    th = np.linalg.norm(w) * t
+    if th == 0.0:
+        return np.eye(3)
+    k = np.asarray(w, float) / np.linalg.norm(w)
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + math.sin(th) * K + (1.0 - math.cos(th)) * K @ K

@@ -13,6 +13,7 @@ from prismbatch.motion import CLEAR, CONTACT, UNDECIDED, time_of_impact
 from prismbatch.sampling import free_poses
 
 from helpers import count_pairs_sent
+from reference import rodrigues
 
 DOWN = np.diag([1.0, -1.0, -1.0])  # a's axis points down: a's body is z <= 0 below its end face at z = 0
 SQUARE = pb.Prism.regular(4, math.sqrt(2.0), phase=math.pi / 4)  # the square [-1, 1]^2
@@ -21,16 +22,6 @@ SQUARE = pb.Prism.regular(4, math.sqrt(2.0), phase=math.pi / 4)  # the square [-
 def rot_z(phi):
     c, s = math.cos(phi), math.sin(phi)
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
-def rodrigues(w, t):
-    """exp(t [w]x), written independently of the kernel (matrix exponential of the skew matrix)."""
-    th = np.linalg.norm(w) * t
-    if th == 0.0:
-        return np.eye(3)
-    k = np.asarray(w, float) / np.linalg.norm(w)
-    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    return np.eye(3) + math.sin(th) * K + (1.0 - math.cos(th)) * K @ K
 
 
 # --- closed forms ---------------------------------------------------------------------------------

@@ -19,19 +19,11 @@ from hypothesis import strategies as st
 import prismbatch as pb
 from prismbatch._kernels.motion import directional_bounds, reach
 
+from reference import rodrigues
+
 DOWN = np.diag([1.0, -1.0, -1.0])  # a's axis points down: its body is z <= 0 below its end face at z = 0
 ALONG_X = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])  # a body's axis along +x
 SQUARE = pb.Prism.regular(4, math.sqrt(2.0), phase=math.pi / 4)  # the square [-1, 1]^2
-
-
-def rodrigues(w, t):
-    """exp(t [w]x), the matrix exponential of the skew matrix."""
-    th = np.linalg.norm(w) * t
-    if th == 0.0:
-        return np.eye(3)
-    k = np.asarray(w, float) / np.linalg.norm(w)
-    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    return np.eye(3) + math.sin(th) * K + (1.0 - math.cos(th)) * K @ K
 
 
 def face(prism, pos, rot):
