@@ -82,10 +82,12 @@ def test_an_interrupted_validation_resumes_to_the_uninterrupted_counts(tmp_path,
     with pytest.raises(Interrupted) as e:
         V.validate(N_PAIRS, **SMALL, checkpoint_dir=tmp_path)
     part = e.value.result
-    assert part.partial == {"pairs_done": 3 * V.BLOCK_SIZE + 100, "pairs_total": 2 * N_PAIRS}
+    # the distance section's 1,000 pairs (four blocks) run after the collision pairs: none done yet
+    done = {"pairs_done": 3 * V.BLOCK_SIZE + 100, "pairs_total": 2 * N_PAIRS}
+    assert part.partial == {**done, "distance_pairs_done": 0, "distance_pairs_total": 1000}
     assert len(glob.glob(str(tmp_path / "checkpoint" / "validate" / "*.pickle"))) == 4
     paths = V.write_validation(part, tmp_path)  # the partial report says so and keeps the checkpoint
-    assert "PARTIAL (12,388 of 24,776 pairs" in open(paths["markdown"]).read()
+    assert "PARTIAL (12,388 of 24,776 pairs and 0 of 1,000 signed-distance pairs" in open(paths["markdown"]).read()
     assert json.load(open(paths["json"]))["partial"]["pairs_done"] == 12388
     assert (tmp_path / "checkpoint" / "validate").is_dir()
 
@@ -97,6 +99,31 @@ def test_an_interrupted_validation_resumes_to_the_uninterrupted_counts(tmp_path,
     assert resumed.outcome() == whole.outcome()  # every count and record, not only the totals
     V.write_validation(resumed, tmp_path)
     assert not (tmp_path / "checkpoint").exists()  # removed once the full report is written
+
+
+def test_an_interrupted_distance_section_counts_its_pairs(monkeypatch):
+    from prismbatch.lab.validate import driver
+    from prismbatch.lab.validate.distance import DISTANCE_BLOCK
+
+    real = driver.run_chunk
+    calls = []
+
+    def stop_in_the_second_distance_block(cfg, *spec):
+        calls.append(spec)
+        if len(calls) == 8 + 2:  # after the 8 collision chunks and one distance block
+            raise KeyboardInterrupt
+        return real(cfg, *spec)
+
+    monkeypatch.setattr(driver, "run_chunk", stop_in_the_second_distance_block)
+    with pytest.raises(Interrupted) as e:
+        V.validate(N_PAIRS, **SMALL)
+    assert e.value.result.partial == {
+        "pairs_done": 2 * N_PAIRS,
+        "pairs_total": 2 * N_PAIRS,
+        "distance_pairs_done": DISTANCE_BLOCK,
+        "distance_pairs_total": 1000,
+    }
+    assert (e.value.done, e.value.total) == (2 * N_PAIRS + DISTANCE_BLOCK, 2 * N_PAIRS + 1000)
 
 
 def test_sigterm_stops_the_command_with_one_line_and_status_130(tmp_path):

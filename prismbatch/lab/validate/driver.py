@@ -259,8 +259,15 @@ def validate(
     except KeyboardInterrupt:
         done = sum(c["pairs"] for c in merger.counts.values())
         total = cfg["n_pairs"] * len(cfg["distributions"])
-        exc = Interrupted(done, total, "pair", checkpoint=ckpt)
-        exc.result = result({"scheduler": "interrupted"}, partial={"pairs_done": done, "pairs_total": total})
+        dist = merger.distance.pairs()
+        partial = {
+            "pairs_done": done,
+            "pairs_total": total,
+            "distance_pairs_done": 0 if dist is None else len(dist["pb"]),
+            "distance_pairs_total": cfg["distance_pairs"],
+        }
+        exc = Interrupted(done + partial["distance_pairs_done"], total + cfg["distance_pairs"], "pair", checkpoint=ckpt)
+        exc.result = result({"scheduler": "interrupted"}, partial=partial)
         raise exc from None
     res = result(execution)
     if stiff:

@@ -81,7 +81,8 @@ class ValidationResult:
     stiff : object or None
         The stiff suite's report (``prismbatch.lab.stiff``) when requested.
     partial : dict or None
-        For a run stopped early: ``pairs_done`` and ``pairs_total``.
+        For a run stopped early: ``pairs_done`` and ``pairs_total`` (collision pairs), and
+        ``distance_pairs_done`` and ``distance_pairs_total`` (the signed-distance section).
     checkpoint : Checkpoint or None
         Where finished chunks were saved (removed once the full report is written).
     distance : dict or None

@@ -226,8 +226,12 @@ def _verdict(result):
     prefix = ""
     if result.partial is not None:
         p = result.partial
+        dist = ""
+        if p.get("distance_pairs_total"):
+            dist = f" and {p['distance_pairs_done']:,} of {p['distance_pairs_total']:,} signed-distance pairs"
         prefix = (
-            f"PARTIAL ({p['pairs_done']:,} of {p['pairs_total']:,} pairs; the same command with --resume continues): "
+            f"PARTIAL ({p['pairs_done']:,} of {p['pairs_total']:,} pairs{dist}; "
+            "the same command with --resume continues): "
         )
     return prefix + _verdict_of_pairs(result, cfg)
 
