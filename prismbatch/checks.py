@@ -123,10 +123,15 @@ def real_scalar(x, name: str, lo: float = -_FLOAT_MAX, hi: float = _FLOAT_MAX) -
     return v
 
 
+def is_int(x) -> bool:
+    """A Python or NumPy integer, not a bool."""
+    return not isinstance(x, (bool, np.bool_)) and isinstance(x, (int, np.integer))
+
+
 def integer(x, name: str, lo: int, hi: int | None = None) -> int:
     """``x`` as a Python int in [lo, hi]: TypeError unless it is an integer (a bool, a float such
     as 2.0 or a string is not), ValueError out of range (``hi`` None: no upper end)."""
-    if isinstance(x, (bool, np.bool_)) or not isinstance(x, (int, np.integer)):
+    if not is_int(x):
         raise TypeError(f"{name} must be an integer, got {type(x).__name__} {x!r}")
     if x < lo or (hi is not None and x > hi):
         raise ValueError(f"{name} must be {f'>= {lo}' if hi is None else f'in [{lo}, {hi}]'}, got {x}")

@@ -7,36 +7,64 @@ from numba import prange
 from .jit import jit
 
 
+@jit(inline="always")
+def _rotation_ok(R, tol):
+    """R finite, orthonormal within ``tol`` (every ``|R^T R - I|`` entry) and proper (det > 0).
+
+    Branch-free over the six distinct entries of the symmetric ``R^T R``: a NaN or inf makes a
+    comparison False, so non-finite matrices fail too.
+    """
+    a0, a1, a2 = R[0, 0], R[1, 0], R[2, 0]
+    b0, b1, b2 = R[0, 1], R[1, 1], R[2, 1]
+    c0, c1, c2 = R[0, 2], R[1, 2], R[2, 2]
+    ok = abs(a0 * a0 + a1 * a1 + a2 * a2 - 1.0) <= tol
+    ok &= abs(b0 * b0 + b1 * b1 + b2 * b2 - 1.0) <= tol
+    ok &= abs(c0 * c0 + c1 * c1 + c2 * c2 - 1.0) <= tol
+    ok &= abs(a0 * b0 + a1 * b1 + a2 * b2) <= tol
+    ok &= abs(a0 * c0 + a1 * c1 + a2 * c2) <= tol
+    ok &= abs(b0 * c0 + b1 * c1 + b2 * c2) <= tol
+    det = a0 * (b1 * c2 - c1 * b2) - b0 * (a1 * c2 - c1 * a2) + c0 * (a1 * b2 - b1 * a2)
+    return ok & (det > 0.0)
+
+
+@jit
+def _rotation_problem(R, tol):
+    """(kind, value) of a matrix :func:`_rotation_ok` rejects: 1 non-finite, 2 not orthonormal (the
+    largest error), 3 a reflection (det)."""
+    for j in range(3):
+        for k in range(3):
+            if not math.isfinite(R[j, k]):
+                return 1, 0.0
+    err = 0.0
+    for j in range(3):
+        for k in range(3):
+            g = R[0, j] * R[0, k] + R[1, j] * R[1, k] + R[2, j] * R[2, k]
+            if j == k:
+                g -= 1.0
+            err = max(err, abs(g))
+    if err > tol:
+        return 2, err
+    det = (
+        R[0, 0] * (R[1, 1] * R[2, 2] - R[1, 2] * R[2, 1])
+        - R[0, 1] * (R[1, 0] * R[2, 2] - R[1, 2] * R[2, 0])
+        + R[0, 2] * (R[1, 0] * R[2, 1] - R[1, 1] * R[2, 0])
+    )
+    return 3, det
+
+
 @jit
 def first_bad_rotation(Rb, tol):
     """One pass over (N, 3, 3): (index, kind, value) of the first bad matrix.
 
     kind 0: all good; 1: non-finite; 2: not orthonormal (value = max error);
     3: reflection (value = det). A compiled loop: the NumPy version
-    (matmul + det over the batch) cost more than the collision kernel.
+    (matmul + det over the batch) cost more than the collision kernel; the pass tests each
+    matrix without branches and classifies only the first it rejects.
     """
     for i in range(Rb.shape[0]):
-        R = Rb[i]
-        for j in range(3):
-            for k in range(3):
-                if not math.isfinite(R[j, k]):
-                    return i, 1, 0.0
-        err = 0.0
-        for j in range(3):
-            for k in range(3):
-                g = R[0, j] * R[0, k] + R[1, j] * R[1, k] + R[2, j] * R[2, k]
-                if j == k:
-                    g -= 1.0
-                err = max(err, abs(g))
-        if err > tol:
-            return i, 2, err
-        det = (
-            R[0, 0] * (R[1, 1] * R[2, 2] - R[1, 2] * R[2, 1])
-            - R[0, 1] * (R[1, 0] * R[2, 2] - R[1, 2] * R[2, 0])
-            + R[0, 2] * (R[1, 0] * R[2, 1] - R[1, 1] * R[2, 0])
-        )
-        if det <= 0.0:
-            return i, 3, det
+        if not _rotation_ok(Rb[i], tol):
+            kind, val = _rotation_problem(Rb[i], tol)
+            return i, kind, val
     return -1, 0, 0.0
 
 

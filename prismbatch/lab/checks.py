@@ -4,23 +4,15 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
+from ..checks import integer, is_int
 
 __all__ = ["is_int", "check_int", "check_positive", "check_int_tuple"]
 
 
-def is_int(v):
-    """A Python or NumPy integer, not a bool."""
-    return not isinstance(v, (bool, np.bool_)) and isinstance(v, (int, np.integer))
-
-
 def check_int(v, name, minimum=1):
-    """``v`` as an int; TypeError if it is not an integer (bools refused), ValueError below ``minimum``."""
-    if not is_int(v):
-        raise TypeError(f"{name} must be an integer, got {v!r}")
-    if v < minimum:
-        raise ValueError(f"{name} must be >= {minimum}, got {v}")
-    return int(v)
+    """``v`` as an int; TypeError if it is not an integer (bools refused), ValueError below ``minimum``
+    (the engine's :func:`~prismbatch.checks.integer`, here with a default minimum of 1)."""
+    return integer(v, name, minimum)
 
 
 def check_int_tuple(x, name, minimum):

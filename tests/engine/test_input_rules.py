@@ -5,11 +5,14 @@ dtype)`` = max(ORTHO_TOL[compute], 64 eps(input)); a rejected rotation's
 message says how to fix the input.
 """
 
+import math
+
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
 import prismbatch as pb
+from prismbatch._kernels.checks import first_bad_rotation
 from prismbatch.poses import ORTHO_TOL_F32, ORTHO_TOL_F64, as_pose, as_rotations, ortho_tolerance
 
 A = pb.Prism.regular(5, 2.0)
@@ -150,3 +153,55 @@ def test_parallel_rotation_check_names_the_first_bad_matrix(kind):
         messages.append(str(err.value))
     assert messages[0] == messages[1]
     assert f"rot_a[{bad[0]}]" in messages[1]
+
+
+def _first_bad_reference(Rs, tol):
+    """(index, kind, value) of the first bad matrix, in plain Python (the kernel's summation order)."""
+    for i, M in enumerate(Rs):
+        if not all(math.isfinite(v) for v in M.flat):
+            return i, 1, 0.0
+        err = max(abs(sum(M[m, j] * M[m, k] for m in range(3)) - (j == k)) for j in range(3) for k in range(3))
+        if err > tol:
+            return i, 2, err
+        det = np.linalg.det(M)
+        if det <= 0.0:
+            return i, 3, None  # (the kernel's det: its own formula)
+    return -1, 0, 0.0
+
+
+def test_compiled_check_matches_a_plain_reference():
+    """The branch-free pass of first_bad_rotation against the plain rule, on matrices at the
+    tolerance's edge (one entry moved by 0.3 to 3 tol, the whole scaled, two columns sheared),
+    non-finite entries in every place and reflections, one matrix at a time and as batches."""
+    rng = np.random.default_rng(11)
+    tol = ORTHO_TOL_F64
+    cases = []
+    for _ in range(300):
+        M = Rotation.random(random_state=rng).as_matrix()
+        kind = rng.integers(0, 6)
+        if kind == 1:
+            M[rng.integers(3), rng.integers(3)] += rng.choice([-1, 1]) * rng.uniform(0.3, 3.0) * tol
+        elif kind == 2:
+            M[rng.integers(3), rng.integers(3)] = rng.choice([np.nan, np.inf, -np.inf])
+        elif kind == 3:
+            M[:, rng.integers(3)] *= -1.0  # a reflection
+        elif kind == 4:
+            M = M * (1.0 + rng.choice([-1, 1]) * rng.uniform(0.1, 1.0) * tol)  # scaled to the edge
+        elif kind == 5:  # two columns sheared together: their dot product moves, the norms hardly
+            j, k = rng.choice(3, 2, replace=False)
+            M[:, j] += rng.choice([-1, 1]) * rng.uniform(0.3, 3.0) * tol * M[:, k]
+        cases.append(M)
+    kinds = []
+    for M in cases:
+        want = _first_bad_reference([M], tol)
+        got = first_bad_rotation(M[None].copy(), tol)
+        assert got[:2] == want[:2], (M, got, want)
+        if want[1] == 2:
+            assert got[2] == want[2]
+        kinds.append(want[1])
+    assert set(kinds) == {0, 1, 2, 3}  # every outcome was tried
+    batch = np.array(cases)
+    for start in range(0, 300, 37):
+        want = _first_bad_reference(batch[start:], tol)
+        got = first_bad_rotation(batch[start:].copy(), tol)
+        assert got[:2] == want[:2]
