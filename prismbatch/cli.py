@@ -296,8 +296,8 @@ def _validate_parser(sub):
         type=int,
         default=None,
         metavar="N",
-        help="pairs of the signed-distance section, against the exact reference and coal, per distance "
-        "bucket (0: off; default: the smaller of 1,000 and --pairs)",
+        help="pairs of the signed-distance section in all, spread evenly over its distance buckets and "
+        "checked against the exact reference and coal (0: off; default: the smaller of 1,000 and --pairs)",
     )
     p.add_argument(
         "--distance-vertices",
