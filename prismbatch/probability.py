@@ -384,7 +384,20 @@ class _Run:
         kern = sample_parallel if use_parallel(self.parallel, m) else sample_serial
         out = np.empty((m, 3)), np.empty((m, 3, 3)), np.empty((m, 3)), np.empty((m, 3, 3))
         kern(np.ascontiguousarray(query, dtype=np.int64), self.L, np.ascontiguousarray(z), *self.poses, *out)
+        lim = self.limits[3]
+        ok = (np.abs(out[0]) <= lim).all(axis=1) & (np.abs(out[2]) <= lim).all(axis=1)  # False for NaN too
+        ok &= np.isfinite(out[1]).all(axis=(1, 2)) & np.isfinite(out[3]).all(axis=(1, 2))
+        if not ok.all():
+            where = "in the search for the likeliest collision"
+            raise ValueError(self._noise_too_large(int(query[np.argmin(ok)]), where))
         return out
+
+    def _noise_too_large(self, q, where):
+        """The message for noise that moves a sampled pose out of the coordinates' range."""
+        return (
+            f"query {q}: a sampled position lies beyond {self.limits[3]:g} from the origin or a sampled rotation "
+            f"is not finite ({where}); the pose noise is too large for {self.col.dtype.name} coordinates"
+        )
 
     def proposals(self, qs, rngs, reach):
         """The importance-sampling mixtures of queries ``qs``: ``{query: (mu (J, k), log weights (J,), active)}``.
@@ -544,7 +557,6 @@ class _Run:
     def _count(self, query, start, count, keys, mixtures):
         """The sampling loop on tasks ``(query, start, count)``: ``(hits, shift, sums)`` per task."""
         T, dt = len(query), self.col.dtype
-        max_magnitude = self.limits[3]
         scratch = np.empty((T, self.k)), np.empty((T, 3), dt), np.empty((T, 3, 3), dt), np.empty((T, 3), dt)
         scratch += (np.empty((T, 3, 3), dt),)
         hits, shift, sums, bad = np.empty(T, np.int64), np.empty(T), np.empty((T, 3)), np.empty(T, np.int64)
@@ -556,11 +568,7 @@ class _Run:
         # fmt: on
         if (bad >= 0).any():
             t = int(np.argmax(bad >= 0))
-            raise ValueError(
-                f"query {int(query[t])}: a sampled position lies beyond {max_magnitude:g} from the origin or a "
-                f"sampled rotation is not finite (sample {int(start[t] + bad[t])}); the pose noise is too large "
-                f"for {dt.name} coordinates"
-            )
+            raise ValueError(self._noise_too_large(int(query[t]), f"sample {int(start[t] + bad[t])}"))
         return hits, shift, sums
 
 
@@ -570,6 +578,6 @@ def _through_exp(theta, v):
     t = np.linalg.norm(theta, axis=1)[:, None]
     safe = np.where(t > 1e-4, t, 1.0)
     b = np.where(t > 1e-4, 2 * (np.sin(0.5 * safe) / safe) ** 2, 0.5 - t * t / 24)
-    c = np.where(t > 1e-4, (safe - np.sin(safe)) / safe**3, 1 / 6 - t * t / 120)
+    c = np.where(t > 1e-4, (1.0 - np.sin(safe) / safe) / safe / safe, 1 / 6 - t * t / 120)  # (t - sin t) / t^3
     w = np.cross(theta, v)
     return v - b * w + c * np.cross(theta, w)
