@@ -251,8 +251,9 @@ def signed_distance(a_arrays, b_arrays, n, pos_a, rot_a, pos_b, rot_b, *, rtol, 
     first_call((kern, np.dtype(dtype)), kern, *args, work, *outs)
     again = np.flatnonzero(solver == EPA_STOPPED)  # EPA out of the batch's room: more room, rarely needed
     if again.size:
-        kern = rerun_parallel if use_parallel(parallel, again.size) else rerun_serial
-        first_call((kern, np.dtype(dtype)), kern, *args, again, *outs)
+        again_parallel = use_parallel(parallel, again.size)
+        kern = rerun_parallel if again_parallel else rerun_serial
+        first_call((kern, np.dtype(dtype)), kern, *args, again, work_blocks(again.size, again_parallel), *outs)
     if not witness:
         return DistanceResult(dist, status, tol, solver)
     return DistanceResult(dist, status, tol, solver, normal, point_a, point_b)

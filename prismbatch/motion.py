@@ -290,8 +290,10 @@ def impact_times(
     first_call(("time_of_impact", kern, np.dtype(dtype)), kern, *args, work, *outs)
     again = np.flatnonzero(status == RERUN)  # EPA out of the batch's room: rarely needed
     if again.size:
-        kern = toi_rerun_parallel if use_parallel(parallel, again.size) else toi_rerun_serial
-        first_call(("time_of_impact_rerun", kern, np.dtype(dtype)), kern, *args, again, *outs)
+        again_parallel = use_parallel(parallel, again.size)
+        kern = toi_rerun_parallel if again_parallel else toi_rerun_serial
+        blocks = work_blocks(again.size, again_parallel)
+        first_call(("time_of_impact_rerun", kern, np.dtype(dtype)), kern, *args, again, blocks, *outs)
     return TimeOfImpactResult(
         time,
         status,

@@ -605,19 +605,25 @@ def _store(i, d, t, code, n, p, witness, dist_out, status_out, tol_out, solver_o
             pb_out[i, c] = p[c] + d * n[c]
 
 
-def _rerun_loop(a_floats, a_ints, b_floats, b_ints, poses, rtol, atol, eps, witness, pairs, out, wit):
+def _rerun_loop(a_floats, a_ints, b_floats, b_ints, poses, rtol, atol, eps, witness, pairs, blocks, out, wit):
     """The pairs ``pairs`` (indices) whose EPA ran out of the batch loop's room, with EPA's largest room
-    (the same answer as growing it step by step: a room only matters once it is full)."""
+    (the same answer as growing it step by step: a room only matters once it is full), in ``blocks``
+    contiguous blocks that each allocate that room (some 10 MB) once."""
     avx, avy, aeang, aetab, _, _, aoff, arad, acen = unpack(a_floats, a_ints)
     bvx, bvy, beang, betab, _, _, boff, brad, bcen = unpack(b_floats, b_ints)
     P = (avx, avy, aeang, aetab, bvx, bvy, beang, betab)
     dist_out, status_out, tol_out, solver_out = out
     normal_out, pa_out, pb_out = wit
-    for k in prange(pairs.shape[0]):
-        i = pairs[k]
+    m = pairs.shape[0]
+    for bp in prange(blocks):
+        blk = np.int64(bp)  # prange's index is unsigned
         ws = block_of(workspace(1, EPA_ROOM[-1]), 0)
-        d, t, code, nrm, p = _pair(i, P, aoff, arad, acen, boff, brad, bcen, poses, rtol, atol, eps, witness, ws)
-        _store(i, d, t, code, nrm, p, witness, dist_out, status_out, tol_out, solver_out, normal_out, pa_out, pb_out)
+        for k in range(blk * m // blocks, (blk + 1) * m // blocks):
+            i = pairs[k]
+            d, t, code, nrm, p = _pair(i, P, aoff, arad, acen, boff, brad, bcen, poses, rtol, atol, eps, witness, ws)
+            _store(
+                i, d, t, code, nrm, p, witness, dist_out, status_out, tol_out, solver_out, normal_out, pa_out, pb_out
+            )
 
 
 # The batch loop allocates nothing (its workspace comes in): no reference counting (jit's default); the

@@ -367,10 +367,11 @@ def _toi_loop(
                  contact)  # fmt: skip
 
 
-def _rerun_loop(a_floats, a_ints, b_floats, b_ints, poses, motion, rtol, atol, eps, max_iter, pairs, out, pose_out,
-                contact):  # fmt: skip
+def _rerun_loop(a_floats, a_ints, b_floats, b_ints, poses, motion, rtol, atol, eps, max_iter, pairs, blocks, out,
+                pose_out, contact):  # fmt: skip
     """The pairs ``pairs`` (indices) that :func:`_toi_loop` left with status RERUN, with EPA's largest room
-    (the same answer as growing it step by step: a room only matters once it is full)."""
+    (the same answer as growing it step by step: a room only matters once it is full), in ``blocks``
+    contiguous blocks that each allocate that room once."""
     avx, avy, aeang, aetab, _, _, aoff, arad, acen = unpack(a_floats, a_ints)
     bvx, bvy, beang, betab, _, _, boff, brad, bcen = unpack(b_floats, b_ints)
     P = (avx, avy, aeang, aetab, bvx, bvy, beang, betab)
@@ -378,11 +379,14 @@ def _rerun_loop(a_floats, a_ints, b_floats, b_ints, poses, motion, rtol, atol, e
     vel, omg, horizon = motion
     time_out, status_out, iter_out, dist_out = out
     pos_out, rot_out = pose_out
-    for k in prange(pairs.shape[0]):
+    m = pairs.shape[0]
+    for bp in prange(blocks):
+        blk = np.int64(bp)  # prange's index is unsigned
         ws = (np.empty(3), np.empty((3, 3)), block_of(workspace(1, EPA_ROOM[-1]), 0))
-        _one(pairs[k], P, aoff, arad, acen, boff, brad, bcen, pos_a, rot_a, pos_b, rot_b, vel, omg, horizon, rtol,
-             atol, eps, max_iter, ws, False, time_out, status_out, iter_out, dist_out, pos_out, rot_out,
-             contact)  # fmt: skip
+        for k in range(blk * m // blocks, (blk + 1) * m // blocks):
+            _one(pairs[k], P, aoff, arad, acen, boff, brad, bcen, pos_a, rot_a, pos_b, rot_b, vel, omg, horizon, rtol,
+                 atol, eps, max_iter, ws, False, time_out, status_out, iter_out, dist_out, pos_out, rot_out,
+                 contact)  # fmt: skip
 
 
 @jit(inline="always")
