@@ -61,26 +61,35 @@ def median_time(f, repeats):
     return float(np.median(ts))
 
 
+def _sampling_time(col, pos_b, repeats, **kw):
+    """Median seconds of ``collision_probability`` on the facing squares (b at ``pos_b``, noise
+    FACING_COV), after one call that compiles or loads its kernels."""
+    call = lambda: col.collision_probability(np.zeros(3), DOWN, pos_b, np.eye(3), FACING_COV, **kw)  # noqa: E731
+    call()
+    return median_time(call, repeats)
+
+
+def _collide_rate(col, pos_b, spin, repeats):
+    """Pairs/s of ``collide`` on facing pairs: a fixed, b at ``pos_b`` (m, 3) turned by ``spin`` (m,)
+    about its axis."""
+    m = len(spin)
+    c, s = np.cos(spin), np.sin(spin)
+    R = np.zeros((m, 3, 3))
+    R[:, 0, 0], R[:, 0, 1], R[:, 1, 0], R[:, 1, 1], R[:, 2, 2] = c, -s, s, c, 1.0
+    pa, ra = np.zeros((m, 3)), np.broadcast_to(DOWN, (m, 3, 3)).copy()
+    col.collide(pa, ra, pos_b, R)
+    return m / median_time(lambda: col.collide(pa, ra, pos_b, R), repeats)
+
+
 def rate(n_samples, n_queries, repeats):
     """Samples/s of plain sampling (budget spent) and pairs/s of collide on as many pairs."""
     per = n_samples // n_queries
-    pos = np.tile([0.0, 0.0, 0.1], (n_queries, 1))
-    kw = dict(rel_error=1e-9, max_samples=per, method="plain", seed=0)
     col = pb.Collider(SQ, SQ)
-    col.collision_probability(np.zeros(3), DOWN, pos, np.eye(3), FACING_COV, **kw)  # warm
-    t_prob = median_time(
-        lambda: col.collision_probability(np.zeros(3), DOWN, pos, np.eye(3), FACING_COV, **kw), repeats
-    )
+    kw = dict(rel_error=1e-9, max_samples=per, method="plain", seed=0)
+    t_prob = _sampling_time(col, np.tile([0.0, 0.0, 0.1], (n_queries, 1)), repeats, **kw)
     rng = np.random.default_rng(0)
-    pb_ = np.column_stack([rng.normal(0, 0.05, (n_samples, 2)), 0.1 + rng.normal(0, 0.1, n_samples)])
-    phi = rng.normal(0, 0.1, n_samples)
-    R = np.zeros((n_samples, 3, 3))
-    R[:, 0, 0] = R[:, 1, 1] = np.cos(phi)
-    R[:, 1, 0], R[:, 0, 1], R[:, 2, 2] = np.sin(phi), -np.sin(phi), 1.0
-    pa, ra = np.zeros((n_samples, 3)), np.broadcast_to(DOWN, (n_samples, 3, 3)).copy()
-    col.collide(pa, ra, pb_, R)
-    t_col = median_time(lambda: col.collide(pa, ra, pb_, R), repeats)
-    return per * n_queries / t_prob, n_samples / t_col
+    pos = np.column_stack([rng.normal(0, 0.05, (n_samples, 2)), 0.1 + rng.normal(0, 0.1, n_samples)])
+    return per * n_queries / t_prob, _collide_rate(col, pos, rng.normal(0, 0.1, n_samples), repeats)
 
 
 def importance_rate(n_samples, repeats):
@@ -89,24 +98,15 @@ def importance_rate(n_samples, repeats):
     height, spread 1.2 in standard units), 10 % from the nominal noise. Its samples land near
     contact, where collide does more work than on the nominal poses of :func:`rate`."""
     h = LEVELS[1e-4]
-    kw = dict(rel_error=1e-9, max_samples=n_samples, method="importance", seed=0)
     col = pb.Collider(SQ, SQ)
-    col.collision_probability(np.zeros(3), DOWN, [0, 0, h], np.eye(3), FACING_COV, **kw)  # warm
-    t_prob = median_time(
-        lambda: col.collision_probability(np.zeros(3), DOWN, [0, 0, h], np.eye(3), FACING_COV, **kw), repeats
-    )
+    kw = dict(rel_error=1e-9, max_samples=n_samples, method="importance", seed=0)
+    t_prob = _sampling_time(col, [0, 0, h], repeats, **kw)
     rng = np.random.default_rng(0)
     z = rng.normal(size=(n_samples, 4))  # x, y, height, spin in standard units
     near = rng.uniform(size=n_samples) >= 0.1
     z[near] = np.array([0.0, 0.0, -h / 0.1, 0.0]) + 1.2 * z[near]
     pos = np.column_stack([0.05 * z[:, 0], 0.05 * z[:, 1], h + 0.1 * z[:, 2]])
-    c, s_ = np.cos(0.1 * z[:, 3]), np.sin(0.1 * z[:, 3])
-    R = np.zeros((n_samples, 3, 3))
-    R[:, 0, 0], R[:, 0, 1], R[:, 1, 0], R[:, 1, 1], R[:, 2, 2] = c, -s_, s_, c, 1.0
-    pa, ra = np.zeros((n_samples, 3)), np.broadcast_to(DOWN, (n_samples, 3, 3)).copy()
-    col.collide(pa, ra, pos, R)
-    t_col = median_time(lambda: col.collide(pa, ra, pos, R), repeats)
-    return n_samples / t_prob, n_samples / t_col
+    return n_samples / t_prob, _collide_rate(col, pos, 0.1 * z[:, 3], repeats)
 
 
 def needed(seeds, plain_up_to):
