@@ -388,7 +388,19 @@ class Collider:
         trace = np.full(TRACE_SIZE, np.nan)
         a, b = self._a, self._b
         hit, case, cx, cy, cz = _batch.pair_world(
-            *_batch.all_fields(a), 0, *_batch.pair_fields(b), 0, Pa, Ra, Pb, Rb, self.rtol, self.atol, self._eps, trace
+            *_batch.all_fields(a),
+            0,
+            *_batch.pair_fields(b),
+            0,
+            Pa,
+            Ra,
+            None,
+            Pb,
+            Rb,
+            self.rtol,
+            self.atol,
+            self._eps,
+            trace,
         )
         out = {name: float(v) for name, v in zip(TRACE_FIELDS, trace)}
         out["exit"] = int(trace[TRACE_FIELDS.index("exit")])

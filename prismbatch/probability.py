@@ -74,7 +74,7 @@ import numpy as np
 
 from ._kernels.batch import use_parallel
 from ._kernels.jit import first_call
-from ._kernels.probability import count_parallel, count_serial, sample_parallel, sample_serial
+from ._kernels.probability import count_parallel, count_serial, poses_usable, sample_parallel, sample_serial
 from ._kernels.streams import ZIGGURAT
 from .checks import as_real_array, check_flag, integer, real_scalar
 from .config import SUPPORTED_RANGE
@@ -385,8 +385,10 @@ class _Run:
         out = np.empty((m, 3)), np.empty((m, 3, 3)), np.empty((m, 3)), np.empty((m, 3, 3))
         kern(np.ascontiguousarray(query, dtype=np.int64), self.L, np.ascontiguousarray(z), *self.poses, *out)
         lim = self.limits[3]
-        ok = (np.abs(out[0]) <= lim).all(axis=1) & (np.abs(out[2]) <= lim).all(axis=1)  # False for NaN too
-        ok &= np.isfinite(out[1]).all(axis=(1, 2)) & np.isfinite(out[3]).all(axis=(1, 2))
+        ok, ok_b = np.empty(m, bool), np.empty(m, bool)
+        poses_usable(out[0], out[1], lim, ok)
+        poses_usable(out[2], out[3], lim, ok_b)
+        ok &= ok_b
         if not ok.all():
             where = "in the search for the likeliest collision"
             raise ValueError(self._noise_too_large(int(query[np.argmin(ok)]), where))

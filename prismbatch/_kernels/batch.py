@@ -50,10 +50,36 @@ def pair_tolerance(ra, rb, centre_distance, ox, oy, oz, dx, dy, dz, rtol, atol, 
     return atol + rtol * (ra + rb + centre_distance) + 4.0 * eps * far
 
 
+@jit(error_model="numpy", inline="always")
+def frame_inverse(Ra):
+    """The exact inverse of a's rotation matrix, row by row ``(i00, i01, ..., i22)``: rows
+    a1 x a2, a2 x a0, a0 x a1 over det. The body is the affine image of the matrix as given,
+    whose rounding from orthonormal would misplace b by ``|Ra^T Ra - I| |d|`` under Ra^T.
+    Apart from :func:`pair_world` so that a loop whose a stays put forms it once."""
+    i00 = Ra[1, 1] * Ra[2, 2] - Ra[2, 1] * Ra[1, 2]
+    i01 = Ra[2, 1] * Ra[0, 2] - Ra[0, 1] * Ra[2, 2]
+    i02 = Ra[0, 1] * Ra[1, 2] - Ra[1, 1] * Ra[0, 2]
+    i10 = Ra[1, 2] * Ra[2, 0] - Ra[2, 2] * Ra[1, 0]
+    i11 = Ra[2, 2] * Ra[0, 0] - Ra[0, 2] * Ra[2, 0]
+    i12 = Ra[0, 2] * Ra[1, 0] - Ra[1, 2] * Ra[0, 0]
+    i20 = Ra[1, 0] * Ra[2, 1] - Ra[2, 0] * Ra[1, 1]
+    i21 = Ra[2, 0] * Ra[0, 1] - Ra[0, 0] * Ra[2, 1]
+    i22 = Ra[0, 0] * Ra[1, 1] - Ra[1, 0] * Ra[0, 1]
+    inv_det = 1.0 / (Ra[0, 0] * i00 + Ra[1, 0] * i01 + Ra[2, 0] * i02)
+    i00 *= inv_det
+    i01 *= inv_det
+    i02 *= inv_det
+    i10 *= inv_det
+    i11 *= inv_det
+    i12 *= inv_det
+    i20 *= inv_det
+    i21 *= inv_det
+    i22 *= inv_det
+    return i00, i01, i02, i10, i11, i12, i20, i21, i22
+
+
 # error_model="numpy": with Python's ZeroDivisionError check on 1 / det the
 # facing-pose benchmark measured ~20% slower per pair; det ~ 1 here.
-# Kept as one long function: the per-pair hot path (not split into calls, which would add call and
-# tuple overhead per pair; a measured split is future work).
 @jit(error_model="numpy", inline="always")
 def pair_world(
     avx,
@@ -76,6 +102,7 @@ def pair_world(
     kb,
     Pa,
     Ra,
+    inv,
     Pb,
     Rb,
     rtol,
@@ -85,33 +112,17 @@ def pair_world(
 ):
     """One pair from world poses: (hit, case, contact x, y, z in world).
 
-    Shapes ka of set a and kb of set b; Pa (3,), Ra (3, 3) etc. ``trace``:
+    Shapes ka of set a and kb of set b; Pa (3,), Ra (3, 3) etc.; ``inv``: :func:`frame_inverse`
+    of Ra, or None to form it here. ``trace``:
     None, or TRACE_SIZE floats to fill (see _projection.TRACE_FIELDS).
     """
     ox, oy, oz, dx, dy, dz = centres_world(acen[ka, 0], acen[ka, 1], bcen[kb, 0], bcen[kb, 1], Pa, Ra, Pb, Rb)
-    # b's pose in a's centred frame, p = Ra^-1 d and R = Ra^-1 Rb, with the
-    # exact inverse (rows a1 x a2, a2 x a0, a0 x a1 over det): the body is
-    # the affine image of the matrix as given, whose rounding from
-    # orthonormal Ra^T would misplace b by |Ra^T Ra - I| |d|.
-    i00 = Ra[1, 1] * Ra[2, 2] - Ra[2, 1] * Ra[1, 2]
-    i01 = Ra[2, 1] * Ra[0, 2] - Ra[0, 1] * Ra[2, 2]
-    i02 = Ra[0, 1] * Ra[1, 2] - Ra[1, 1] * Ra[0, 2]
-    i10 = Ra[1, 2] * Ra[2, 0] - Ra[2, 2] * Ra[1, 0]
-    i11 = Ra[2, 2] * Ra[0, 0] - Ra[0, 2] * Ra[2, 0]
-    i12 = Ra[0, 2] * Ra[1, 0] - Ra[1, 2] * Ra[0, 0]
-    i20 = Ra[1, 0] * Ra[2, 1] - Ra[2, 0] * Ra[1, 1]
-    i21 = Ra[2, 0] * Ra[0, 1] - Ra[0, 0] * Ra[2, 1]
-    i22 = Ra[0, 0] * Ra[1, 1] - Ra[1, 0] * Ra[0, 1]
-    inv_det = 1.0 / (Ra[0, 0] * i00 + Ra[1, 0] * i01 + Ra[2, 0] * i02)
-    i00 *= inv_det
-    i01 *= inv_det
-    i02 *= inv_det
-    i10 *= inv_det
-    i11 *= inv_det
-    i12 *= inv_det
-    i20 *= inv_det
-    i21 *= inv_det
-    i22 *= inv_det
+    # b's pose in a's centred frame, p = Ra^-1 d and R = Ra^-1 Rb. (Passing the inverse in made
+    # the batch loop 20 % slower, so there it is formed here: None is pruned when compiling.)
+    if inv is None:
+        i00, i01, i02, i10, i11, i12, i20, i21, i22 = frame_inverse(Ra)
+    else:
+        i00, i01, i02, i10, i11, i12, i20, i21, i22 = inv
     px = i00 * dx + i01 * dy + i02 * dz
     py = i10 * dx + i11 * dy + i12 * dz
     pz = i20 * dx + i21 * dy + i22 * dz
@@ -201,8 +212,9 @@ def pair_world(
 
 
 @jit(inline="always")
-def pair_of_sets(a, b, ka, kb, Pa, Ra, Pb, Rb, rtol, atol, eps, trace):
-    """:func:`pair_world` for prism ka of set a and prism kb of set b, each set the tuple of :func:`unpack`."""
+def pair_of_sets(a, b, ka, kb, Pa, Ra, inv, Pb, Rb, rtol, atol, eps, trace):
+    """:func:`pair_world` for prism ka of set a and prism kb of set b, each set the tuple of :func:`unpack`
+    (``inv``: :func:`frame_inverse` of Ra, or None)."""
     # (unpacked by name: Numba's inliner takes no star arguments)
     ax, ay, aea, aet, ava, ainv, aoff, arad, acen = a
     bx, by, bea, bet, _, _, boff, brad, bcen = b
@@ -227,6 +239,7 @@ def pair_of_sets(a, b, ka, kb, Pa, Ra, Pb, Rb, rtol, atol, eps, trace):
         kb,
         Pa,
         Ra,
+        inv,
         Pb,
         Rb,
         rtol,
@@ -273,6 +286,7 @@ def _collide_loop(
             min(i, nsb - 1),
             pos_a[min(i, npa - 1)],
             rot_a[min(i, nra - 1)],
+            None,
             pos_b[min(i, npb - 1)],
             rot_b[min(i, nrb - 1)],
             rtol,
@@ -471,7 +485,7 @@ def _collide_pair(
     if problem:
         return problem, val, False, 0, nan, nan, nan
     a, b = unpack(a_floats, a_ints), unpack(b_floats, b_ints)
-    hit, case, cx, cy, cz = pair_of_sets(a, b, 0, 0, Pa, Ra, Pb, Rb, rtol, atol, eps, None)
+    hit, case, cx, cy, cz = pair_of_sets(a, b, 0, 0, Pa, Ra, None, Pb, Rb, rtol, atol, eps, None)
     return 0, 0.0, hit, case, cx, cy, cz
 
 
