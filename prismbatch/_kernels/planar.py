@@ -33,6 +33,18 @@ GJK_MAX_ITER = 160
 
 
 @jit(inline="always")
+def wrap(x, period):
+    """``x % period`` for a float x in [-period, period] (a difference of two angles), bit for
+    bit, without the remainder's libm call. (Integer indices keep ``%``: the same branches in
+    place of the integer division measured slower.)"""
+    if x < 0.0:
+        return x + period
+    if x >= period:
+        return x - period
+    return x
+
+
+@jit(inline="always")
 def pseudo_angle(x, y):
     """A strictly increasing stand-in for atan2(y, x), in [0, 4): cheaper than atan2.
 
@@ -112,7 +124,7 @@ def extreme_vertex(vx, vy, eang, etab, s, n, dx, dy):
     if n == 1:
         return 0
     p0 = eang[s]
-    off = (pseudo_angle(-dy, dx) - p0) % 4.0  # angle + pi/2, relative to edge 0
+    off = wrap(pseudo_angle(-dy, dx) - p0, 4.0)  # angle + pi/2, relative to edge 0
     target = p0 + off
     if not off >= 0.0:  # NaN direction (never from valid input): any vertex, but no wild index
         off = 0.0
@@ -134,7 +146,7 @@ def extreme_vertex(vx, vy, eang, etab, s, n, dx, dy):
 def wedge_edge(vang, s, n, px, py):
     """Edge k whose wedge (polar angles about the centre) holds point p (eq. 1)."""
     th0 = vang[s]
-    target = th0 + (math.atan2(py, px) - th0) % TWO_PI
+    target = th0 + wrap(math.atan2(py, px) - th0, TWO_PI)
     lo = 0
     hi = n
     while lo < hi:  # count of vertices with polar angle <= target
