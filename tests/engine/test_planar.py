@@ -497,3 +497,19 @@ def test_point_polygon_vertices_and_edges_exact():
         hit, sd = planar.point_polygon(P, g.c, 0.0)
         n2, h2 = polygon_halfplanes(P)
         assert hit and sd >= np.min(h2 - n2 @ g.c) * (1 - 1e-9), (P.tolist(), sd)
+
+
+@pytest.mark.parametrize("period", [4.0, 2 * np.pi])
+def test_wrap_is_the_remainder_bit_for_bit(period):
+    """The kernels' ``wrap`` (a compare and an add, for differences of two angles) against Python's
+    ``%`` over its whole range [-period, period], ends and values that round to the period included."""
+    from prismbatch._kernels.planar import wrap
+
+    rng = np.random.default_rng(11)
+    edges = [-period, period, 0.0, -0.0, -1e-300, -1e-17, 1e-17, np.nextafter(period, 0.0), -np.nextafter(period, 0.0)]
+    xs = np.concatenate([rng.uniform(-period, period, 20000), 10.0 ** rng.uniform(-20, 0, 2000) * -1, edges])
+    got = np.array([wrap(float(x), period) for x in xs])
+    want = np.array([float(x) % period for x in xs])
+    assert np.array_equal(got, want)
+    assert 0.0 <= got.min() and got.max() <= period
+    assert np.isnan(wrap(np.nan, period))
