@@ -17,7 +17,7 @@ from numba import prange
 from .checks import first_bad_rotation
 from .jit import first_call, jit, per_dtype, twins
 from .planar import extreme_vertex
-from .projection import CASE_ABOVE, T_P, T_R, T_TOL, pair_test, surely_above
+from .projection import CASE_ABOVE, T_P, T_R, T_TOL, pair_test, surely_above, surely_above_by_radius
 
 
 @jit(inline="always")
@@ -158,9 +158,7 @@ def pair_world(
             trace[T_P + j] = v
         for j, v in enumerate((r00, r01, r02, r10, r11, r12, r20, r21, r22)):
             trace[T_R + j] = v
-    if trace is None and r22 <= 0.0 and pz + math.sqrt(r20 * r20 + r21 * r21) * rb < -tol:
-        # The same exit as below, proven by b's circumradius (no vertex reaches further into a):
-        # most pairs that leave early need no vertex search, which costs more than the rest here.
+    if trace is None and surely_above_by_radius(pz, r20, r21, r22, rb, tol):  # the exit below, sooner
         return False, CASE_ABOVE, math.nan, math.nan, math.nan
     imax = extreme_vertex(bvx, bvy, beang, betab, sb, nb, r20, r21)  # b's vertex deepest into a
     if trace is None and surely_above(bvx, bvy, sb, imax, pz, r20, r21, r22, tol):

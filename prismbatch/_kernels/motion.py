@@ -59,35 +59,13 @@ from .distance import (
 )
 from .jit import jit, twins
 from .planar import extreme_vertex, slab_support
+from .vec3 import rotate_by
 
 #: Status codes of a pair: touching at ``time``; no contact up to the horizon; iteration cap reached
 #: (or a step too small to advance the time), ``time`` then being how far the motion is proven free.
 CONTACT, CLEAR, UNDECIDED = 1, 0, -1
 #: Internal status of the batch loop: EPA ran out of the block's room; the pair is computed again with more.
 RERUN = -2
-
-
-@jit(inline="always")
-def rotate(wx, wy, wz, t, R0, R):
-    """R = exp(t [w]x) R0 (Rodrigues), written into R."""
-    wn = math.sqrt(wx * wx + wy * wy + wz * wz)
-    th = t * wn
-    if th == 0.0:
-        for i in range(3):
-            for j in range(3):
-                R[i, j] = R0[i, j]
-        return
-    kx, ky, kz = wx / wn, wy / wn, wz / wn
-    s = math.sin(th)
-    c1 = 2.0 * math.sin(0.5 * th) ** 2  # 1 - cos, without its cancellation at small angles
-    m00, m01, m02 = 1.0 - c1 * (ky * ky + kz * kz), c1 * kx * ky - s * kz, c1 * kx * kz + s * ky
-    m10, m11, m12 = c1 * kx * ky + s * kz, 1.0 - c1 * (kx * kx + kz * kz), c1 * ky * kz - s * kx
-    m20, m21, m22 = c1 * kx * kz - s * ky, c1 * ky * kz + s * kx, 1.0 - c1 * (kx * kx + ky * ky)
-    for j in range(3):
-        r0, r1, r2 = R0[0, j], R0[1, j], R0[2, j]
-        R[0, j] = m00 * r0 + m01 * r1 + m02 * r2
-        R[1, j] = m10 * r0 + m11 * r1 + m12 * r2
-        R[2, j] = m20 * r0 + m21 * r1 + m22 * r2
 
 
 @jit(inline="always")
@@ -264,7 +242,7 @@ def pair_time_of_impact(P, ix, ca, cb, ra, rb, Pa, Ra, Pb0, Rb0, v, w, horizon, 
     while True:
         for c in range(3):
             Pb[c] = Pb0[c] + v[c] * t
-        rotate(wx, wy, wz, t, Rb0, Rb)
+        rotate_by(t * wx, t * wy, t * wz, Rb0, Rb)
         d, tol, code, n, pa = pair_distance(P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, rtol, atol, eps, True, work)
         if rerun and code == EPA_STOPPED:
             return t, RERUN, it, d, (nan, nan, nan)

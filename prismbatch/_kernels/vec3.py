@@ -1,4 +1,7 @@
-"""Small 3-vector helpers for the distance kernels (tuples and rows of (n, 3) arrays), inlined."""
+"""Small 3-vector helpers for the distance kernels (tuples and rows of (n, 3) arrays), and the
+exponential of a rotation vector; inlined."""
+
+import math
 
 from .jit import jit
 
@@ -31,3 +34,52 @@ def row(V, i):
 def diff(V, i, j):
     """Row i minus row j of V."""
     return sub(row(V, i), row(V, j))
+
+
+# Taylor coefficients in u = t^2 of sin(t) / t and (1 - cos t) / t^2, lowest first, to the term
+# that falls below 1e-19 for t <= 1 (the sampled rotations are mostly smaller).
+_SINC_SERIES = tuple((-1.0) ** k / math.factorial(2 * k + 1) for k in range(10))
+_COSC_SERIES = tuple((-1.0) ** k / math.factorial(2 * k + 2) for k in range(10))
+
+
+@jit(inline="always")
+def _series10(c, u, u2, u4, u8):
+    """``c[0] + c[1] u + ... + c[9] u^9`` by Estrin's scheme: four dependent steps where
+    Horner's rule takes ten, a latency the sampling loop waited on."""
+    low = (c[0] + c[1] * u) + (c[2] + c[3] * u) * u2
+    high = (c[4] + c[5] * u) + (c[6] + c[7] * u) * u2
+    return (low + high * u4) + (c[8] + c[9] * u) * u8
+
+
+@jit(inline="always", error_model="numpy")
+def rodrigues_coefficients(u):
+    """``(sin t / t, (1 - cos t) / t^2)`` of the angle ``t = sqrt(u)``, u >= 0.
+
+    For t <= 1 their series in u (no square root, division or sine, whose latency held up the
+    sampling loop); beyond, from the sine and cosine of t / 2 (no digits lost either way).
+    """
+    if u <= 1.0:
+        u2 = u * u
+        u4 = u2 * u2
+        u8 = u4 * u4
+        return _series10(_SINC_SERIES, u, u2, u4, u8), _series10(_COSC_SERIES, u, u2, u4, u8)
+    t = math.sqrt(u)
+    h = math.sin(0.5 * t) / (0.5 * t)
+    return h * math.cos(0.5 * t), 0.5 * h * h
+
+
+@jit(inline="always")
+def rotate_by(tx, ty, tz, R0, R):
+    """``R = exp([theta]x) R0``, theta = (tx, ty, tz), written into R (3 x 3): Rodrigues,
+    ``I + a K + b K^2`` with K = [theta]x and a, b from :func:`rodrigues_coefficients`."""
+    xx, yy, zz = tx * tx, ty * ty, tz * tz
+    a, b = rodrigues_coefficients(xx + yy + zz)
+    e00, e11, e22 = 1.0 - b * (yy + zz), 1.0 - b * (xx + zz), 1.0 - b * (xx + yy)
+    e01, e10 = b * tx * ty - a * tz, b * tx * ty + a * tz
+    e02, e20 = b * tx * tz + a * ty, b * tx * tz - a * ty
+    e12, e21 = b * ty * tz - a * tx, b * ty * tz + a * tx
+    for j in range(3):
+        r0, r1, r2 = R0[0, j], R0[1, j], R0[2, j]
+        R[0, j] = e00 * r0 + e01 * r1 + e02 * r2
+        R[1, j] = e10 * r0 + e11 * r1 + e12 * r2
+        R[2, j] = e20 * r0 + e21 * r1 + e22 * r2
