@@ -85,6 +85,7 @@ TRACE_FIELDS = (
     "coarse_facing_lhs",
     "coarse_facing_rhs",
     "top_vertex_depth_in_Pa",
+    "centre_depth_in_Pa",
     "i_bottom",
     "gjk_hit",
     "gjk_iterations",
@@ -99,10 +100,11 @@ T_ITOP, T_D3, T_PR, T_WN, T_REACH, T_DRIFT = (
 )
 T_PERP, T_CEFF, T_TZ, T_NTOP = _T["perpendicular"], _T["c_used"], _T["height_tol"], _T["near_top_vertices"]
 T_ACROSS, T_ALONG, T_MARGIN = _T["coarse_across"], _T["coarse_along"], _T["coarse_margin"]
-T_FACE_L, T_FACE_R, T_EARLY, T_IBOT = (
+T_FACE_L, T_FACE_R, T_EARLY, T_EARLY_C, T_IBOT = (
     _T["coarse_facing_lhs"],
     _T["coarse_facing_rhs"],
     _T["top_vertex_depth_in_Pa"],
+    _T["centre_depth_in_Pa"],
     _T["i_bottom"],
 )
 T_GJK_HIT, T_GJK_IT, T_CASE, T_HIT = _T["gjk_hit"], _T["gjk_iterations"], _T["case"], _T["hit"]
@@ -119,6 +121,7 @@ EXITS = {
     8: "early accept: b's deepest end-face vertex projects inside P_a (collision)",
     9: "2-D GJK: P_a and the projection of b are within tol (collision)",
     10: "2-D GJK: P_a and the projection of b are more than tol apart (no collision)",
+    11: "early accept: b's end-face centre reaches a's plane and projects inside P_a (collision)",
 }
 
 
@@ -301,7 +304,7 @@ def pair_test(
         _done(trace, 7, coarse, False)
         return False, coarse, nan, nan, nan
 
-    # --- early accept: b's deepest end-face vertex projects inside P_a ---
+    # --- early accept: b's deepest end-face vertex, or its centre, projects inside P_a ---
     if d3 >= -tz:
         ex = px + r00 * top_u + r01 * top_v
         ey = py + r10 * top_u + r11 * top_v
@@ -311,6 +314,16 @@ def pair_test(
         if depth >= 0.0:
             _done(trace, 8, case, True)
             return True, case, ex, ey, 0.5 * (d3 + max(d3, 0.0))
+        # b's end-face centre, when it reaches a's plane too: for end faces nearly parallel to a's,
+        # the deepest vertex is any corner and often outside P_a where the centre is inside (on
+        # facing squares 86 % of the hits went on to GJK, which costs several times this test).
+        if pz >= -tz:
+            depth = point_polygon_distance(avx, avy, avang, ainv, sa, na, px, py)
+            if trace is not None:
+                trace[T_EARLY_C] = depth
+            if depth >= 0.0:
+                _done(trace, 11, case, True)
+                return True, case, px, py, 0.5 * (pz + max(pz, 0.0))
 
     # --- exact planar test: GJK of P_a against the projection of b ---
     imin = extreme_vertex(bvx, bvy, beang, betab, sb, nb, -hx, -hy)

@@ -392,6 +392,13 @@ def format_trace(rec, e, *, number=None, total=None):
             + ("(inside: accept)" if d >= 0 else "(outside: go on)")
         )
         step += 1
+    if _known(e, "centre_depth_in_Pa"):
+        d = e["centre_depth_in_Pa"]
+        L.append(
+            f"  {step}. early accept: signed depth of b's end-face centre's projection in P_a = {_g6(d)} "
+            + ("(inside: accept)" if d >= 0 else "(outside: go on)")
+        )
+        step += 1
     if _known(e, "gjk_hit"):
         L.append(
             f"  {step}. planar GJK of P_a vs the projection of b (from bottom vertex #{int(e['i_bottom'])}): "

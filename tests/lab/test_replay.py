@@ -24,6 +24,7 @@ def _pairs():
 
 
 def test_explain_matches_collide_and_an_independent_frame():
+    centre_exits = 0
     for a, b, pa, ra, pbp, rb in _pairs():
         col = pb.Collider(a, b)
         e = col.explain(pa, ra, pbp, rb)
@@ -43,12 +44,18 @@ def test_explain_matches_collide_and_an_independent_frame():
         d3 = p[2] + np.max(q @ R[2, :2])
         assert abs(e["delta3"] - d3) <= 1e-12
         assert e["exit"] in EXITS and e["exit_reason"] == EXITS[e["exit"]]
-        # Exits 8 and 9 are the only ones that report a collision.
-        assert e["hit"] == (e["exit"] in (8, 9))
+        # Exits 8, 9 and 11 are the only ones that report a collision.
+        assert e["hit"] == (e["exit"] in (8, 9, 11))
+        if e["exit"] == 11:  # b's end-face centre: at a's plane within tol, and inside P_a
+            assert e["centre_depth_in_Pa"] >= 0.0 and e["p_z"] >= -e["height_tol"]
+            cz = 0.5 * (e["p_z"] + max(e["p_z"], 0.0))  # on b's face, or halfway to a's plane
+            np.testing.assert_allclose(e["contact"], ca + ra @ [e["p_x"], e["p_y"], cz], atol=1e-9)
+            centre_exits += 1
         if e["exit"] in (9, 10):
             assert e["gjk_hit"] == (1.0 if e["hit"] else 0.0)
         else:
             assert np.isnan(e["gjk_hit"])
+    assert centre_exits > 0  # the early accept by b's centre was taken
 
 
 def test_replay_round_trip_is_bit_exact_and_reproduces_answers(tmp_path):
