@@ -196,11 +196,10 @@ class Tally:
         """Half-width of the interval over the estimate (inf with no hit); ``normal``: of the
         uncorrected normal interval (the pilot sizes the estimate with it: a few hits make a
         noisy skewness)."""
+        if not weighted:
+            return float(plain_intervals([self], z)[3][0])
         if self.hits == 0:
             return math.inf
-        if not weighted:
-            lo, hi = wilson(self.hits, self.n, z)
-            return float(hi - lo) / 2 / (self.hits / self.n)
         if normal:
             mean, se, _ = self._moments()
             return z * se / mean
@@ -217,11 +216,22 @@ class Tally:
         """``(p, low, high)``."""
         n = self.n
         if not weighted:
-            lo, hi = wilson(self.hits, n, z)
-            return self.hits / n, float(lo), float(hi)
+            return tuple(float(v[0]) for v in plain_intervals([self], z)[:3])
         if self.hits == 0:  # P_q(hit) >= DEFENSIVE p: the Wilson bound of the hit rate, over DEFENSIVE
             return 0.0, 0.0, min(1.0, float(wilson(0, n, z)[1]) / DEFENSIVE)
         mean, lo, hi = self._ends(z)
         at = lambda v: math.exp(self.shift + math.log(v)) if v > 0 else 0.0  # noqa: E731
         # an upper end below the smallest float64 is rounded up to it (it stays an upper bound)
         return at(mean), at(lo), min(1.0, max(at(hi), math.ulp(0.0)))
+
+
+def plain_intervals(tallies, z):
+    """``(p, low, high, relative half-width)``, arrays over unweighted tallies: their Wilson
+    intervals in one NumPy call (one call a query cost some 20 us, a tenth of the sampling time
+    of 256 queries). The half-width is inf for a tally with no hit."""
+    hits = np.array([t.hits for t in tallies], dtype=np.float64)
+    n = np.array([t.n for t in tallies], dtype=np.float64)
+    low, high = wilson(hits, n, z)
+    p = hits / n
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return p, low, high, np.where(hits > 0, (high - low) / 2 / p, np.inf)

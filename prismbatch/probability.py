@@ -78,7 +78,7 @@ from ._kernels.probability import count_parallel, count_serial, poses_usable, sa
 from ._kernels.streams import ZIGGURAT
 from .checks import as_real_array, check_flag, integer, real_scalar
 from .config import SUPPORTED_RANGE
-from .importance import DEFENSIVE, SPREAD, Tally, centres, design_points, design_starts
+from .importance import DEFENSIVE, SPREAD, Tally, centres, design_points, design_starts, plain_intervals
 from .poses import as_pose, broadcast_poses
 from .results import BatchResult
 from .shapes import Prism, as_prism_set
@@ -488,9 +488,11 @@ class _Run:
         while todo:
             self._round(todo, stream_keys, drawn, state, mixtures)
             nxt = {}
+            plain = [i for i in todo if how[i] != IMPORTANCE]
+            rho_plain = dict(zip(plain, plain_intervals([state[i] for i in plain], self.z)[3].tolist()))
             for i in todo:
                 st = state[i]
-                rho = st.relative_half_width(self.z, how[i] == IMPORTANCE)
+                rho = rho_plain[i] if i in rho_plain else st.relative_half_width(self.z, True)
                 left = max_samples - st.n - (pilot[i] or 0)
                 if how[i] == IMPORTANCE and st.log_high(self.z) < LOG_NEGLIGIBLE:
                     converged[i] = True  # p is below 1e-300 at the interval's upper end: reported as 0
@@ -500,7 +502,8 @@ class _Run:
                         # The pilot sizes the estimate, which then gets fresh samples (coverage;
                         # see the module notes).
                         pilot[i], state[i] = st.n, Tally()
-                        rho = st.relative_half_width(self.z, how[i] == IMPORTANCE, normal=True)
+                        if i not in rho_plain:  # (a plain interval has no normal form of its own)
+                            rho = st.relative_half_width(self.z, True, normal=True)
                         nxt[i] = int(
                             min(max(math.ceil(PILOT_MARGIN * st.n * (rho / self.rel) ** 2), FIRST_ROUND), left)
                         )
@@ -517,7 +520,11 @@ class _Run:
             todo = nxt
         for i, st in state.items():
             samples[i], hits[i] = st.n + (pilot[i] or 0), st.hits
-            p[i], low[i], high[i] = st.interval(self.z, how[i] == IMPORTANCE)
+            if how[i] == IMPORTANCE:
+                p[i], low[i], high[i] = st.interval(self.z, True)
+        plain = [i for i in state if how[i] != IMPORTANCE]
+        if plain:
+            p[plain], low[plain], high[plain] = plain_intervals([state[i] for i in plain], self.z)[:3]
         return ProbabilityResult(p, low, high, samples, converged, how, hits, beta, int(seed), confidence, self.rel)
 
     def _packed(self, mix, how):
