@@ -148,6 +148,15 @@ def _near_top_count(bvx, bvy, sb, nb, hx, hy, imax, zmax_h, tol):
 
 
 @jit(inline="always")
+def _projects_inside(avx, avy, avang, ainv, sa, na, x, y, trace, field):
+    """Does (x, y) lie in P_a? (Its signed depth goes to ``trace[field]``.)"""
+    depth = point_polygon_distance(avx, avy, avang, ainv, sa, na, x, y)
+    if trace is not None:
+        trace[field] = depth
+    return depth >= 0.0
+
+
+@jit(inline="always")
 def surely_above(bvx, bvy, sb, imax, pz, r20, r21, r22, tol):
     """The common case-1 exit, Δ3 < -tol and d_a.d_b <= 0 (b's end face beyond a's plane and its body
     leaving it): :func:`pair_test`'s first test, cheap enough for the caller to take ahead of the call."""
@@ -308,22 +317,15 @@ def pair_test(
     if d3 >= -tz:
         ex = px + r00 * top_u + r01 * top_v
         ey = py + r10 * top_u + r11 * top_v
-        depth = point_polygon_distance(avx, avy, avang, ainv, sa, na, ex, ey)
-        if trace is not None:
-            trace[T_EARLY] = depth
-        if depth >= 0.0:
+        if _projects_inside(avx, avy, avang, ainv, sa, na, ex, ey, trace, T_EARLY):
             _done(trace, 8, case, True)
             return True, case, ex, ey, 0.5 * (d3 + max(d3, 0.0))
         # b's end-face centre, when it reaches a's plane too: for end faces nearly parallel to a's,
         # the deepest vertex is any corner and often outside P_a where the centre is inside (on
         # facing squares 86 % of the hits went on to GJK, which costs several times this test).
-        if pz >= -tz:
-            depth = point_polygon_distance(avx, avy, avang, ainv, sa, na, px, py)
-            if trace is not None:
-                trace[T_EARLY_C] = depth
-            if depth >= 0.0:
-                _done(trace, 11, case, True)
-                return True, case, px, py, 0.5 * (pz + max(pz, 0.0))
+        if pz >= -tz and _projects_inside(avx, avy, avang, ainv, sa, na, px, py, trace, T_EARLY_C):
+            _done(trace, 11, case, True)
+            return True, case, px, py, 0.5 * (pz + max(pz, 0.0))
 
     # --- exact planar test: GJK of P_a against the projection of b ---
     imin = extreme_vertex(bvx, bvy, beang, betab, sb, nb, -hx, -hy)

@@ -385,20 +385,14 @@ def format_trace(rec, e, *, number=None, total=None):
                 f"{_g6(e['coarse_margin'])}"
             )
         step += 1
-    if _known(e, "top_vertex_depth_in_Pa"):
-        d = e["top_vertex_depth_in_Pa"]
-        L.append(
-            f"  {step}. early accept: signed depth of that vertex's projection in P_a = {_g6(d)} "
-            + ("(inside: accept)" if d >= 0 else "(outside: go on)")
-        )
-        step += 1
-    if _known(e, "centre_depth_in_Pa"):
-        d = e["centre_depth_in_Pa"]
-        L.append(
-            f"  {step}. early accept: signed depth of b's end-face centre's projection in P_a = {_g6(d)} "
-            + ("(inside: accept)" if d >= 0 else "(outside: go on)")
-        )
-        step += 1
+    for field, what in (("top_vertex_depth_in_Pa", "that vertex's"), ("centre_depth_in_Pa", "b's end-face centre's")):
+        if _known(e, field):
+            d = e[field]
+            L.append(
+                f"  {step}. early accept: signed depth of {what} projection in P_a = {_g6(d)} "
+                + ("(inside: accept)" if d >= 0 else "(outside: go on)")
+            )
+            step += 1
     if _known(e, "gjk_hit"):
         L.append(
             f"  {step}. planar GJK of P_a vs the projection of b (from bottom vertex #{int(e['i_bottom'])}): "
