@@ -15,7 +15,7 @@ from scipy import integrate, stats
 from scipy.spatial.transform import Rotation
 
 import prismbatch as pb
-from prismbatch._kernels.probability import sample_serial
+from prismbatch._kernels.probability import poses_usable, sample_serial
 from prismbatch._kernels.streams import ZIGGURAT
 from prismbatch._kernels.vec3 import rodrigues_coefficients
 from prismbatch.collide import pair_scale_tolerance
@@ -80,6 +80,24 @@ def test_sample_kernel_matches_reference(k):
         xa = x[6:] if k == 12 else np.zeros(6)
         np.testing.assert_allclose(out[0][s], pos_a0[q[s]] + xa[:3], atol=1e-14)
         np.testing.assert_allclose(out[1][s], expm_reference(xa[3:]) @ rot_a0[q[s]], atol=1e-12)
+
+
+def test_pose_usable_against_a_plain_rule():
+    """The sampling loop's branch-free check of a sampled pose against the rule written out: every
+    coordinate within the range (NaN fails), every rotation entry finite."""
+    rng = np.random.default_rng(5)
+    lim = 1e100
+    m = 400
+    pos, rot = rng.normal(size=(m, 3)) * 1e99, rng.normal(size=(m, 3, 3))
+    for s in range(0, m, 4):  # one odd value in each of three poses out of four
+        pos[s, s % 3] = [lim, -lim, np.nextafter(lim, np.inf), np.inf, -np.inf, np.nan][s % 6]
+        rot[s + 1, (s // 3) % 3, s % 3] = [np.inf, -np.inf, np.nan, 1e308, -1e308, 0.0][s % 6]
+        pos[s + 2, 2], rot[s + 2, 0, 0] = -lim, 1e300
+    out = np.empty(m, bool)
+    poses_usable(pos, rot, lim, out)
+    want = (np.abs(pos) <= lim).all(axis=1) & np.isfinite(rot).all(axis=(1, 2))
+    assert np.array_equal(out, want)
+    assert 0 < want.sum() < m  # both answers occur
 
 
 def _series_reference(u, terms=40):
