@@ -83,18 +83,13 @@ sample_serial, sample_parallel = twins(_sample_loop, "sample_poses", error_model
 
 
 @jit(inline="always", error_model="numpy")
-def _draw_proposal(state, z, t, q, j0, j1, mu, lpi, cum, active, spread, consts):
-    """Move the standard normals ``z[t]`` to a draw of query q's defensive mixture and return
-    ``(log phi(z) / q(z), state)``.
+def _draw_proposal(state, z, t, q, j0, j1, mu, cum, active, spread, defensive):
+    """Move the standard normals ``z[t]`` to a draw of query q's defensive mixture; returns the state.
 
     The mixture is ``d N(0, I) + (1 - d) sum_j pi_j N(mu_j, S)`` over centres ``j0 .. j1 - 1``
-    (``log pi_j = lpi[j]``; ``cum[j] = d + (1 - d) (pi_j0 + ... + pi_j)``), ``S`` ``spread^2``
-    on the query's active noise components and 1 on the others (which then cancel from the
-    weight); its weights are at most ``1 / d``. ``consts``: ``(d, log d, log(1 - d),
-    0.5 / spread^2, n_active log spread)``. The tests compare this with a NumPy form of the
-    same formulas.
+    (``cum[j] = d + (1 - d) (pi_j0 + ... + pi_j)``), ``S`` ``spread^2`` on the query's active
+    noise components and 1 on the others (which then cancel from the weight).
     """
-    defensive, log_d, log_1md, half_inv_s2, log_spread_n = consts
     k = z.shape[1]
     w, state = uniform(state)
     if w >= defensive:  # centre j by its weight; the nominal N(0, I) below ``defensive``
@@ -104,6 +99,17 @@ def _draw_proposal(state, z, t, q, j0, j1, mu, lpi, cum, active, spread, consts)
         for c in range(k):
             if active[q, c]:
                 z[t, c] = mu[j, c] + spread * z[t, c]
+    return state
+
+
+@jit(inline="always", error_model="numpy")
+def _log_weight(z, t, q, j0, j1, mu, lpi, active, consts):
+    """``log phi(z) / q(z)`` of the draw ``z[t]`` of :func:`_draw_proposal` (``log pi_j = lpi[j]``),
+    at most ``-log d``. Only hits need it, so the loop forms it after the test. ``consts``:
+    ``(log d, log(1 - d), 0.5 / spread^2, n_active log spread)``. The tests compare this with a
+    NumPy form of the same formulas."""
+    log_d, log_1md, half_inv_s2, log_spread_n = consts
+    k = z.shape[1]
     zz = 0.0
     for c in range(k):
         if active[q, c]:
@@ -128,7 +134,7 @@ def _draw_proposal(state, z, t, q, j0, j1, mu, lpi, cum, active, spread, consts)
     # -log(d + (1 - d) exp(lr)), as a log-sum-exp
     x, y = log_d, log_1md + lr
     top = max(x, y)
-    return -(top + math.log1p(math.exp(-abs(x - y)))), state
+    return -(top + math.log1p(math.exp(-abs(x - y))))
 
 
 def _count_loop(
@@ -185,7 +191,7 @@ def _count_loop(
         n_active = 0
         for c in range(k):
             n_active += active[q, c]
-        consts = (defensive, log_d, log_1md, half_inv_s2, n_active * math.log(spread))
+        consts = (log_d, log_1md, half_inv_s2, n_active * math.log(spread))
         for j in range(3):  # a's nominal pose, for six-component noise
             pos_a[t, j] = pos_a0[q, j]
             for i in range(3):
@@ -200,9 +206,8 @@ def _count_loop(
                     z[t, c], state = normal(state, zk, zw, zf, zr)
                 else:
                     z[t, c] = 0.0
-            lw = 0.0
             if j1 > j0:
-                lw, state = _draw_proposal(state, z, t, q, j0, j1, mu, lpi, cum, active, spread, consts)
+                state = _draw_proposal(state, z, t, q, j0, j1, mu, cum, active, spread, defensive)
             _perturb(L, z, q, t, 0, pos_b0, rot_b0, pos_b, rot_b)
             if k == 12:
                 _perturb(L, z, q, t, 6, pos_a0, rot_a0, pos_a, rot_a)
@@ -217,6 +222,7 @@ def _count_loop(
             hit = pair_of_sets(a, b, 0, 0, pos_a[t], rot_a[t], inv_a, pos_b[t], rot_b[t], rtol, atol, eps, None)[0]
             if hit:
                 count += 1
+                lw = _log_weight(z, t, q, j0, j1, mu, lpi, active, consts) if j1 > j0 else 0.0
                 if lw > top:  # a running shift keeps the sums' relative error for tiny weights
                     scale = math.exp(top - lw)
                     s1, s2, s3, top = s1 * scale, s2 * scale * scale, s3 * scale * scale * scale, lw
