@@ -192,12 +192,10 @@ class Tally:
         mean, se, skew = self._moments()
         return (mean, *hall_interval(mean, se, skew, z))
 
-    def relative_half_width(self, z, weighted, normal=False):
-        """Half-width of the interval over the estimate (inf with no hit); ``normal``: of the
-        uncorrected normal interval (the pilot sizes the estimate with it: a few hits make a
-        noisy skewness)."""
-        if not weighted:
-            return float(plain_intervals([self], z)[3][0])
+    def relative_half_width(self, z, normal=False):
+        """Half-width of the weighted interval over the estimate (inf with no hit); ``normal``: of
+        the uncorrected normal interval (the pilot sizes the estimate with it: a few hits make a
+        noisy skewness). Unweighted tallies: :func:`plain_intervals`."""
         if self.hits == 0:
             return math.inf
         if normal:
@@ -212,11 +210,9 @@ class Tally:
             return 0.0
         return self.shift + math.log(self._ends(z)[2])
 
-    def interval(self, z, weighted):
-        """``(p, low, high)``."""
+    def interval(self, z):
+        """``(p, low, high)`` of the weighted estimate (unweighted tallies: :func:`plain_intervals`)."""
         n = self.n
-        if not weighted:
-            return tuple(float(v[0]) for v in plain_intervals([self], z)[:3])
         if self.hits == 0:  # P_q(hit) >= DEFENSIVE p: the Wilson bound of the hit rate, over DEFENSIVE
             return 0.0, 0.0, min(1.0, float(wilson(0, n, z)[1]) / DEFENSIVE)
         mean, lo, hi = self._ends(z)

@@ -492,7 +492,7 @@ class _Run:
             rho_plain = dict(zip(plain, plain_intervals([state[i] for i in plain], self.z)[3].tolist()))
             for i in todo:
                 st = state[i]
-                rho = rho_plain[i] if i in rho_plain else st.relative_half_width(self.z, True)
+                rho = rho_plain[i] if i in rho_plain else st.relative_half_width(self.z)
                 left = max_samples - st.n - (pilot[i] or 0)
                 if how[i] == IMPORTANCE and st.log_high(self.z) < LOG_NEGLIGIBLE:
                     converged[i] = True  # p is below 1e-300 at the interval's upper end: reported as 0
@@ -503,7 +503,7 @@ class _Run:
                         # see the module notes).
                         pilot[i], state[i] = st.n, Tally()
                         if i not in rho_plain:  # (a plain interval has no normal form of its own)
-                            rho = st.relative_half_width(self.z, True, normal=True)
+                            rho = st.relative_half_width(self.z, normal=True)
                         nxt[i] = int(
                             min(max(math.ceil(PILOT_MARGIN * st.n * (rho / self.rel) ** 2), FIRST_ROUND), left)
                         )
@@ -521,7 +521,7 @@ class _Run:
         for i, st in state.items():
             samples[i], hits[i] = st.n + (pilot[i] or 0), st.hits
             if how[i] == IMPORTANCE:
-                p[i], low[i], high[i] = st.interval(self.z, True)
+                p[i], low[i], high[i] = st.interval(self.z)
         plain = [i for i in state if how[i] != IMPORTANCE]
         if plain:
             p[plain], low[plain], high[plain] = plain_intervals([state[i] for i in plain], self.z)[:3]

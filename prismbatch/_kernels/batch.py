@@ -117,8 +117,8 @@ def pair_world(
     None, or TRACE_SIZE floats to fill (see _projection.TRACE_FIELDS).
     """
     ox, oy, oz, dx, dy, dz = centres_world(acen[ka, 0], acen[ka, 1], bcen[kb, 0], bcen[kb, 1], Pa, Ra, Pb, Rb)
-    # b's pose in a's centred frame, p = Ra^-1 d and R = Ra^-1 Rb. (Passing the inverse in made
-    # the batch loop 20 % slower, so there it is formed here: None is pruned when compiling.)
+    # b's pose in a's centred frame, p = Ra^-1 d and R = Ra^-1 Rb. Callers whose a changes with every
+    # pair pass None and the inverse is formed here (the None branch is pruned when compiling).
     if inv is None:
         i00, i01, i02, i10, i11, i12, i20, i21, i22 = frame_inverse(Ra)
     else:
