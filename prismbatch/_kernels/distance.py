@@ -239,7 +239,11 @@ def gjk(P, ix, fr, cone, ox, oy, oz, acc, loose, W, I, lam):
         W[m, 0], W[m, 1], W[m, 2] = wx, wy, wz
         I[m, 0], I[m, 1], I[m, 2] = ia, ib, kc
         m, vx, vy, vz, inside, face = closest(W, I, lam, m + 1)
-        if not inside and vx * vx + vy * vy + vz * vz > 2.0 * vv0:  # lost ground: back to the last simplex
+        # Lost ground, or "inside" a tetrahedron although a support plane puts o at least lower > acc
+        # from D_L (rounding on a sliver: three nearly equal points and a far one, as on identical
+        # rotations of 3600-gons, where taking it gave a distance of 0 and a NaN normal): back to the
+        # last simplex, whose v is a point of D_L.
+        if (inside and lower > acc) or (not inside and vx * vx + vy * vy + vz * vz > 2.0 * vv0):
             m = m0
             _copy_simplex(W, I, lam, 4, 0, m)
             return m, vx0, vy0, vz0, lower <= acc or vn - lower > loose, lower  # a gap if shown, else EPA decides

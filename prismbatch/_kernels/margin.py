@@ -124,8 +124,9 @@ def pair_margin(P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, margin, rtol, atol, eps, 
         I[m, 0], I[m, 1], I[m, 2] = ia, ib, kc
         # Both bounds hold for any simplex, so a step that rounding makes lose ground is harmless.
         m, vx, vy, vz, inside, _ = closest(W, I, lam, m + 1)
-        if inside:
-            return True, DECIDED
+        if inside:  # o in a tetrahedron of D_L: a hit, unless a support plane already put o outside D_L
+            # (rounding on a sliver, see distance.gjk); the full signed distance then decides
+            return (True, DECIDED) if lower <= 0.0 else (False, UNDECIDED)
     return False, UNDECIDED
 
 

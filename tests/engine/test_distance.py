@@ -24,7 +24,7 @@ from scipy.spatial.transform import Rotation
 
 import prismbatch as pb
 from prismbatch.collide import pair_scale_tolerance
-from prismbatch.distance import PENETRATING, SEPARATED, TOUCHING, DistanceResult, distance
+from prismbatch.distance import EPA_STOPPED, PENETRATING, SEPARATED, TOUCHING, DistanceResult, distance
 from prismbatch.lab.distance_ref import Body, gap_features, gap_qp, residual, sat_separation
 from prismbatch.sampling import free_poses
 
@@ -183,6 +183,42 @@ def test_3600_gons_are_consistent():
     a2, b2 = pb.Prism.regular(360, 2.0), pb.Prism.regular(360, 2.5)
     r2 = distance(a2, b2, pa, ra, pb_, rb)
     assert (np.abs(r2.distance - r.distance) <= 4.5 * (1 - np.cos(np.pi / 360)) + 10 * r.tol).all()
+
+
+#: Identical rotations of two 3600-gons (radii 2 and 2.5), side by side with a gap of about 4.947: GJK
+#: met a sliver tetrahedron (three nearly equal support points, one far) that rounding said held the
+#: origin, and returned a distance of 0 with a NaN normal although a support plane proved the gap.
+SLIVER_PAIR = (
+    ("0x1.b6fa6a1d4a700p+1", "-0x1.fff7f7c989214p+0", "-0x1.112d0e0a40b36p+2"),
+    (
+        ("0x1.e7ddd7d88f6bep-1", "-0x1.36e6d56d34b44p-4", "-0x1.2ccc5940c2c98p-2"),
+        ("0x1.ac1b2e604e522p-3", "-0x1.133083945f88cp-1", "0x1.a248428e55f50p-1"),
+        ("-0x1.c257af5b63018p-3", "-0x1.ae01512999cfcp-1", "-0x1.fc306bbb763b4p-2"),
+    ),
+    ("0x1.36dc22696467cp+0", "0x1.8d53e060a8100p+0", "0x1.0e81b3b56133cp+2"),
+)
+
+
+def test_identical_rotations_of_3600_gons():
+    """The sliver pair against the reference, then 20,000 identical-rotation pairs of 3600-gons (a
+    handful of which took the sliver before the fix) against the 360-gons' distances."""
+    a, b = pb.Prism.regular(3600, 2.0), pb.Prism.regular(3600, 2.5)
+    pa, R, pb_ = (np.vectorize(float.fromhex)(np.array(x)) for x in SLIVER_PAIR)
+    ref = gap_features(Body(a.xy, pa, R), Body(b.xy, pb_, R))
+    r = distance(a, b, pa, R, pb_, R, witness=True)
+    assert abs(r.distance[0] - ref) <= 10 * r.tol[0] and r.status[0] == SEPARATED
+    assert np.isfinite(r.normal).all() and not pb.collide(a, b, pa, R, pb_, R, margin=0.99 * ref).hit[0]
+    rng = np.random.default_rng(7)
+    pa, ra, pb_, _ = free_poses(20_000, rng, radius=2.5)
+    r = distance(a, b, pa, ra, pb_, ra, witness=True)
+    assert np.isfinite(r.normal).all() and np.isfinite(r.point_b).all()
+    # Inscribed 3600-gon vs 360-gon: the polygons differ by at most R (1 - cos(pi / 360)). Where EPA
+    # stopped early (2 deep overlaps of these 20,000), the depth is only an upper bound, as documented.
+    r2 = distance(pb.Prism.regular(360, 2.0), pb.Prism.regular(360, 2.5), pa, ra, pb_, ra)
+    bound = 4.5 * (1 - np.cos(np.pi / 360)) + 10 * r.tol
+    done = r.solver != EPA_STOPPED
+    assert (np.abs(r2.distance - r.distance) <= bound)[done].all()
+    assert (r.distance <= r2.distance + bound)[~done].all() and (~done).sum() <= 5
 
 
 # ---------------------------------------------------------------------------
