@@ -35,18 +35,20 @@ __all__ = [
 ]
 
 #: Default relative tolerance per dtype. The absolute tolerance of a pair is
-#: ``atol + rtol * (R_a + R_b + |c_b - c_a|) + 4 eps (|c_a| + |c_b|)`` (bounding
-#: radii of the end faces about their centres, the distance between the
-#: centres, and a rounding floor for positions far from the world origin).
+#: ``atol + rtol * (R_a + R_b + |c_b - c_a|) + 4 eps (|c_a| + |c_b|) + 8 eps (|k_a|_1 + |k_b|_1)``
+#: (bounding radii of the end faces about their centres, the distance between the
+#: centres, and rounding floors for positions far from the world origin and for
+#: end faces far from their own local origins, k the centres in the local frames).
 DEFAULT_RTOL = {np.dtype(np.float64): 1e-9, np.dtype(np.float32): 1e-5}
 
 
 def pair_scale_tolerance(shape_a, shape_b, pos_a, rot_a, pos_b, rot_b, *, rtol=None, atol=0.0, dtype=np.float64):
     """Scene scale and touching tolerance of each pair, as the kernels compute them (NumPy).
 
-    ``S = R_a + R_b + |c_b - c_a|`` and ``tol = atol + rtol S + 4 eps (|c_a| + |c_b|)``
-    (end-face radii about the area centroids, centroids c in world
-    coordinates, eps of ``dtype``); for reports and references that need the
+    ``S = R_a + R_b + |c_b - c_a|`` and
+    ``tol = atol + rtol S + 4 eps (|c_a| + |c_b|) + 8 eps (|k_a|_1 + |k_b|_1)``
+    (end-face radii about the area centroids, centroids c in world coordinates and k in
+    the prisms' local frames, eps of ``dtype``); for reports and references that need the
     kernels' tolerance outside them.
 
     Parameters
@@ -69,7 +71,8 @@ def pair_scale_tolerance(shape_a, shape_b, pos_a, rot_a, pos_b, rot_b, *, rtol=N
     ca = pos_a + rot_a[:, :, :2] @ shape_a.centre
     cb = pos_b + rot_b[:, :, :2] @ shape_b.centre
     S = shape_a.radius + shape_b.radius + np.linalg.norm(cb - ca, axis=1)
-    tol = atol + rtol * S + 4 * eps * (np.linalg.norm(ca, axis=1) + np.linalg.norm(cb, axis=1))
+    local = np.abs(shape_a.centre).sum() + np.abs(shape_b.centre).sum()
+    tol = atol + rtol * S + eps * (4 * (np.linalg.norm(ca, axis=1) + np.linalg.norm(cb, axis=1)) + 8 * local)
     return S, tol
 
 
@@ -543,9 +546,9 @@ def collide(
         Component order of quaternion rotations (required for quaternions).
     rtol, atol : float, optional
         Tolerance of touching: a pair's tolerance is
-        ``atol + rtol * (R_a + R_b + |c_b - c_a|) + 4 eps (|c_a| + |c_b|)``
-        (R: end-face radii, c: end-face centres in world coordinates, eps:
-        machine epsilon of ``dtype``). Bodies within it count as
+        ``atol + rtol * (R_a + R_b + |c_b - c_a|) + 4 eps (|c_a| + |c_b|) + 8 eps (|k_a|_1 + |k_b|_1)``
+        (R: end-face radii, c: end-face centres in world coordinates, k: the same in the
+        prisms' local frames, eps: machine epsilon of ``dtype``). Bodies within it count as
         colliding; a reported hit means the bodies are within sqrt(2) times it
         (2 times it for axes perpendicular within tol/4 over a's reach).
     dtype : {numpy.float64, numpy.float32}, optional

@@ -268,8 +268,8 @@ def pair_scale(polys_a, pos_a, rot_a, polys_b, pos_b, rot_b):
 def pair_tolerance(polys_a, pos_a, rot_a, polys_b, pos_b, rot_b, *, rtol=1e-9, atol=0.0):
     """The binding pair tolerance ``atol + rtol * S``.
 
-    The package adds a rounding floor ``4 eps (|c_a| + |c_b|)`` for the world
-    positions; with the unit-size positions used here it is below 1e-14.
+    The package adds rounding floors ``4 eps (|c_a| + |c_b|) + 8 eps (|k_a|_1 + |k_b|_1)`` for the
+    world and local positions of the centres; with the unit-size positions used here they are below 1e-14.
     """
     return atol + rtol * pair_scale(polys_a, pos_a, rot_a, polys_b, pos_b, rot_b)
 

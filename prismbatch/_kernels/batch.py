@@ -40,14 +40,19 @@ def centres_world(acx, acy, bcx, bcy, Pa, Ra, Pb, Rb):
 
 
 @jit(inline="always")
-def pair_tolerance(ra, rb, centre_distance, ox, oy, oz, dx, dy, dz, rtol, atol, eps):
-    """The pair's tolerance ``atol + rtol S + 4 eps (|c_a| + |c_b|)``, S = ra + rb + |c_b - c_a|.
+def pair_tolerance(ra, rb, centre_distance, ox, oy, oz, dx, dy, dz, acx, acy, bcx, bcy, rtol, atol, eps):
+    """The pair's tolerance ``atol + rtol S + 4 eps (|c_a| + |c_b|) + 8 eps (|k_a|_1 + |k_b|_1)``,
+    S = ra + rb + |c_b - c_a|.
 
-    Scale-aware: rounding grows with the sizes involved, and the world positions themselves
-    are only known to eps |c| (o = c_a and d = c_b - c_a from :func:`centres_world`).
+    Scale-aware: rounding grows with the sizes involved. The world centres are only known to
+    eps |c| (o = c_a and d = c_b - c_a from :func:`centres_world`), and forming them from the
+    end-face centres k = (kx, ky) in the prisms' local frames rounds at the size of k, as does
+    storing the vertices about k: a polygon far from its own origin (|k| of 1e7 and more, placed
+    near the world origin) was misplaced by hundreds of tol under the first two terms alone.
     """
     far = math.sqrt(ox * ox + oy * oy + oz * oz) + math.sqrt((dx + ox) ** 2 + (dy + oy) ** 2 + (dz + oz) ** 2)
-    return atol + rtol * (ra + rb + centre_distance) + 4.0 * eps * far
+    local = abs(acx) + abs(acy) + abs(bcx) + abs(bcy)
+    return atol + rtol * (ra + rb + centre_distance) + eps * (4.0 * far + 8.0 * local)
 
 
 @jit(error_model="numpy", inline="always")
@@ -116,7 +121,8 @@ def pair_world(
     of Ra, or None to form it here. ``trace``:
     None, or TRACE_SIZE floats to fill (see _projection.TRACE_FIELDS).
     """
-    ox, oy, oz, dx, dy, dz = centres_world(acen[ka, 0], acen[ka, 1], bcen[kb, 0], bcen[kb, 1], Pa, Ra, Pb, Rb)
+    acx, acy, bcx, bcy = acen[ka, 0], acen[ka, 1], bcen[kb, 0], bcen[kb, 1]
+    ox, oy, oz, dx, dy, dz = centres_world(acx, acy, bcx, bcy, Pa, Ra, Pb, Rb)
     # b's pose in a's centred frame, p = Ra^-1 d and R = Ra^-1 Rb. Callers whose a changes with every
     # pair pass None and the inverse is formed here (the None branch is pruned when compiling).
     if inv is None:
@@ -147,7 +153,8 @@ def pair_world(
     r22 = s + (i20 * ex + i21 * ey + i22 * ez)
     ra = arad[ka]
     rb = brad[kb]
-    tol = pair_tolerance(ra, rb, math.sqrt(px * px + py * py + pz * pz), ox, oy, oz, dx, dy, dz, rtol, atol, eps)
+    centre_distance = math.sqrt(px * px + py * py + pz * pz)
+    tol = pair_tolerance(ra, rb, centre_distance, ox, oy, oz, dx, dy, dz, acx, acy, bcx, bcy, rtol, atol, eps)
     sa = aoff[ka]
     na = aoff[ka + 1] - sa
     sb = boff[kb]

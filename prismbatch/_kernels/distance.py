@@ -495,7 +495,7 @@ def pair_distance(P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, rtol, atol, eps, witnes
     ox, oy, oz, dx, dy, dz = centres_world(ca[0], ca[1], cb[0], cb[1], Pa, Ra, Pb, Rb)
     centre_distance = math.sqrt(dx * dx + dy * dy + dz * dz)
     S = ra + rb + centre_distance
-    tol = pair_tolerance(ra, rb, centre_distance, ox, oy, oz, dx, dy, dz, rtol, atol, eps)  # collide's
+    tol = pair_tolerance(ra, rb, centre_distance, ox, oy, oz, dx, dy, dz, ca[0], ca[1], cb[0], cb[1], rtol, atol, eps)
     L = BOX * S
     acc = max(ACC_FRACTION * tol, ACC_EPS * EPS64 * L)
     loose = max(LOOSE_FRACTION * tol, acc)

@@ -83,7 +83,7 @@ def pair_margin(P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, margin, rtol, atol, eps, 
     angles and inverse edge lengths (for the inside test of b's centre)."""
     ox, oy, oz, dx, dy, dz = centres_world(ca[0], ca[1], cb[0], cb[1], Pa, Ra, Pb, Rb)
     centre_distance = math.sqrt(dx * dx + dy * dy + dz * dz)
-    tol = pair_tolerance(ra, rb, centre_distance, ox, oy, oz, dx, dy, dz, rtol, atol, eps)
+    tol = pair_tolerance(ra, rb, centre_distance, ox, oy, oz, dx, dy, dz, ca[0], ca[1], cb[0], cb[1], rtol, atol, eps)
     hi = margin + SLACK * tol
     lo = margin - SLACK * tol
     # D_L as pair_distance builds it.

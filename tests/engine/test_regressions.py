@@ -637,6 +637,31 @@ def test_tiny_objects_far_from_the_origin_within_tol_hit():
         assert exact["verdict"] == "hit" and exact["gap_over_tol"] < 1.0
         A, B = pb.Prism(xa), pb.Prism(xb)
         _, t = pair_scale_tolerance(A, B, pa[None], ra[None], pb_[None], rb[None])
-        assert t[0] == tol
+        # recorded before the tolerance gained its local-centre term (8 eps |k|_1): the same or larger now,
+        # so the certified gap is still within it
+        assert tol <= t[0] <= tol * (1 + 1e-9)
         assert pb.collide(A, B, pa, ra, pb_, rb).hit[0]
         assert pb.Collider(A, B).collide_pair(pa, ra, pb_, rb).hit
+
+
+def test_end_faces_far_from_their_local_origin():
+    """Polygons given 1e8-1e10 from their own origin, placed near the world origin: every answer and
+    contact within the tolerance contract, judged exactly (the tolerance counts that rounding now)."""
+    from prismbatch.lab.exact_gap import check_contact, judge_pair
+
+    doc = json.loads((DATA / "far_local_origin.json").read_text())
+    f = lambda v: np.array([float.fromhex(x) for x in v])  # noqa: E731
+    for rec in doc["pairs"]:
+        xa, xb = (np.array([f(p) for p in rec[k]]) for k in ("xy_a", "xy_b"))
+        pa, pb_ = f(rec["pos_a"]), f(rec["pos_b"])
+        ra, rb = f(rec["rot_a"]).reshape(3, 3), f(rec["rot_b"]).reshape(3, 3)
+        A, B = pb.Prism(xa), pb.Prism(xb)
+        tol = pair_scale_tolerance(A, B, pa[None], ra[None], pb_[None], rb[None])[1][0]
+        assert tol > float.fromhex(rec["tol_before"])
+        r = pb.collide(A, B, pa, ra, pb_, rb, contact=True)
+        verdict = judge_pair(xa, pa, ra, xb, pb_, rb, tol).verdict
+        assert verdict in ("hit", "band") if r.hit[0] else verdict in ("miss", "band")
+        if r.hit[0]:
+            c = r.contact[0]
+            reach = 2 * tol + 4 * np.finfo(float).eps * np.abs(c).max()
+            assert check_contact(xa, pa, ra, xb, pb_, rb, c, reach) is not False

@@ -16,7 +16,7 @@ from ...collide import DEFAULT_RTOL
 from ...shapes import Prism, PrismSet
 from ..exact import lp_trust_band, margin_lp
 from .certificates import EPS64, contact_certified, plane_certificate
-from .geometry import world_centres
+from .geometry import centre_radius, world_centres
 
 
 def shape_of(polys):
@@ -50,16 +50,18 @@ def margins(ps):
 
 
 def _geometry(ps):
-    """Per pair: S, |c_a| + |c_b|, |p_a| + |p_b| + 2 (rho_a + rho_b) (rho: largest |vertex|)."""
+    """Per pair: S, |c_a| + |c_b|, |p_a| + |p_b| + 2 (rho_a + rho_b) (rho: largest |vertex|), and the
+    end-face centres' L1 norms in their local frames, |k_a|_1 + |k_b|_1."""
     n = len(ps)
-    S, csum, big = np.empty(n), np.empty(n), np.empty(n)
+    S, csum, big, local = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
     for k in range(n):
+        local[k] = np.abs(centre_radius(ps.polys_a[k])[0]).sum() + np.abs(centre_radius(ps.polys_b[k])[0]).sum()
         wa, ra, wb, rb = world_centres(ps.polys_a[k], ps.pos_a[k], ps.rot_a[k], ps.polys_b[k], ps.pos_b[k], ps.rot_b[k])
         S[k] = ra + rb + np.linalg.norm(wb - wa)
         csum[k] = np.linalg.norm(wa) + np.linalg.norm(wb)
         rho = np.max(np.abs(ps.polys_a[k])) + np.max(np.abs(ps.polys_b[k]))
         big[k] = np.linalg.norm(ps.pos_a[k]) + np.linalg.norm(ps.pos_b[k]) + 2 * math.sqrt(2) * rho
-    return S, csum, big
+    return S, csum, big, local
 
 
 def _need(ps, m, trusted, tol, lo_slack, hi_slack, band_lp):
@@ -87,9 +89,9 @@ class _Tolerances(NamedTuple):
 def _tolerances(ps, dt):
     """Pair tolerances in float64 and in ``dt``, and the required answers in both (``_need``)."""
     rtol, eps = DEFAULT_RTOL[dt], float(np.finfo(dt).eps)
-    S, csum, big = _geometry(ps)
-    tol64 = DEFAULT_RTOL[np.dtype(np.float64)] * S + 4 * EPS64 * csum
-    tol = rtol * S + 4 * eps * csum
+    S, csum, big, local = _geometry(ps)
+    tol64 = DEFAULT_RTOL[np.dtype(np.float64)] * S + EPS64 * (4 * csum + 8 * local)  # collide's pair tolerance
+    tol = rtol * S + eps * (4 * csum + 8 * local)
     slack = np.zeros(len(ps)) if dt == np.float64 else 2 * eps * big  # bodies moved by rounding to float32
     return _Tolerances(S, tol64, tol, slack, eps)
 
