@@ -23,6 +23,7 @@ from ._kernels.distance import (
     GJK_GAP,
     GJK_STALLED,
     PENETRATING,
+    PLANAR_DEPTH,
     SEPARATED,
     TOUCHING,
     distance_parallel,
@@ -53,6 +54,8 @@ SOLVERS = {
     FLAT: "the Minkowski difference is flat around the origin: touching, to 1e-3 tol",
     GJK_STALLED: "GJK stalled on rounding (nearly coplanar faces: nearly parallel axes) after proving a gap: "
     "the gap reported is an upper bound, attained by the witness points",
+    PLANAR_DEPTH: "exactly parallel axes pointing the same way, where EPA stopped early: the depth of the end faces' "
+    "overlap in the plane (exact)",
 }
 
 

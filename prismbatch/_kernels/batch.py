@@ -83,6 +83,24 @@ def frame_inverse(Ra):
     return i00, i01, i02, i10, i11, i12, i20, i21, i22
 
 
+@jit(inline="always")
+def relative_pose(inv, dx, dy, dz, Rb):
+    """b's centre ``p = Ra^-1 d`` and the first two columns of ``Ra^-1 Rb`` in a's centred frame, from
+    the rows of :func:`frame_inverse` ``inv``: ``(px, py, pz, r00, r01, r10, r11, r20, r21)``."""
+    i00, i01, i02, i10, i11, i12, i20, i21, i22 = inv
+    return (
+        i00 * dx + i01 * dy + i02 * dz,
+        i10 * dx + i11 * dy + i12 * dz,
+        i20 * dx + i21 * dy + i22 * dz,
+        i00 * Rb[0, 0] + i01 * Rb[1, 0] + i02 * Rb[2, 0],
+        i00 * Rb[0, 1] + i01 * Rb[1, 1] + i02 * Rb[2, 1],
+        i10 * Rb[0, 0] + i11 * Rb[1, 0] + i12 * Rb[2, 0],
+        i10 * Rb[0, 1] + i11 * Rb[1, 1] + i12 * Rb[2, 1],
+        i20 * Rb[0, 0] + i21 * Rb[1, 0] + i22 * Rb[2, 0],
+        i20 * Rb[0, 1] + i21 * Rb[1, 1] + i22 * Rb[2, 1],
+    )
+
+
 # error_model="numpy": with Python's ZeroDivisionError check on 1 / det the
 # facing-pose benchmark measured ~20% slower per pair; det ~ 1 here.
 @jit(error_model="numpy", inline="always")
@@ -129,15 +147,9 @@ def pair_world(
         i00, i01, i02, i10, i11, i12, i20, i21, i22 = frame_inverse(Ra)
     else:
         i00, i01, i02, i10, i11, i12, i20, i21, i22 = inv
-    px = i00 * dx + i01 * dy + i02 * dz
-    py = i10 * dx + i11 * dy + i12 * dz
-    pz = i20 * dx + i21 * dy + i22 * dz
-    r00 = i00 * Rb[0, 0] + i01 * Rb[1, 0] + i02 * Rb[2, 0]
-    r01 = i00 * Rb[0, 1] + i01 * Rb[1, 1] + i02 * Rb[2, 1]
-    r10 = i10 * Rb[0, 0] + i11 * Rb[1, 0] + i12 * Rb[2, 0]
-    r11 = i10 * Rb[0, 1] + i11 * Rb[1, 1] + i12 * Rb[2, 1]
-    r20 = i20 * Rb[0, 0] + i21 * Rb[1, 0] + i22 * Rb[2, 0]
-    r21 = i20 * Rb[0, 1] + i21 * Rb[1, 1] + i22 * Rb[2, 1]
+    px, py, pz, r00, r01, r10, r11, r20, r21 = relative_pose(
+        (i00, i01, i02, i10, i11, i12, i20, i21, i22), dx, dy, dz, Rb
+    )
     # b's axis relative to a's, well conditioned for every tilt: Ra^-1 d_a
     # is exactly e3, so R e3 = s e3 + Ra^-1 (d_b - s d_a) with s = sign of
     # d_a.d_b; the difference is exact (Sterbenz) for nearly (anti)parallel

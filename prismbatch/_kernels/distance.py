@@ -33,6 +33,7 @@ from numba import prange
 from .batch import centres_world, pair_tolerance, unpack
 from .jit import jit, twins
 from .minkowski import cone_box, point_a, support
+from .parallel import parallel_overlap
 from .vec3 import cross, diff, dot, row, sub
 
 SEPARATED, TOUCHING, PENETRATING = 1, 0, -1
@@ -55,8 +56,10 @@ SEEN_SLACK = 1e-2
 #: Solver codes of a pair (the ``solver`` output): the gap by GJK; the depth by EPA; EPA stopped early
 #: (out of room at its largest, or a rounding-level step that would break its polytope: the depth
 #: returned is then an upper bound, the last face offset a lower one); no volume around the origin (touching);
-#: GJK stalled on rounding with a gap proven (the gap returned is an upper bound, attained by the witnesses).
-GJK_GAP, EPA_DEPTH, EPA_STOPPED, FLAT, GJK_STALLED = 0, 1, 2, 3, 4
+#: GJK stalled on rounding with a gap proven (the gap returned is an upper bound, attained by the witnesses);
+#: the depth of exactly parallel axes pointing the same way, from their end faces in the plane (where EPA
+#: stopped early on them: :mod:`.parallel`).
+GJK_GAP, EPA_DEPTH, EPA_STOPPED, FLAT, GJK_STALLED, PLANAR_DEPTH = 0, 1, 2, 3, 4, 5
 
 
 # --- closest point of a simplex to the origin (Ericson's Voronoi-region tests) ------------------------
@@ -519,6 +522,12 @@ def pair_distance(P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, rtol, atol, eps, witnes
     else:
         depth, nx, ny, nz, code = epa(P, ix, fr, cone, W, I, m, acc, work)
         dist = -depth
+        if code == EPA_STOPPED and s > 0.0 and ex == 0.0 and ey == 0.0 and ez == 0.0:
+            # D is a prism along the axes: its depth is the end faces' planar overlap, exactly
+            depth, nrm, pa = parallel_overlap(P, ix, Ra, Rb, ox, oy, oz, dx, dy, dz)
+            if not witness:
+                nrm = pa = (math.nan, math.nan, math.nan)
+            return -depth, tol, PLANAR_DEPTH, nrm, pa
     nan = math.nan
     if not witness:
         return dist, tol, code, (nan, nan, nan), (nan, nan, nan)
