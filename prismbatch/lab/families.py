@@ -3,7 +3,8 @@
 Each family draws ``n`` pose pairs of two prisms (one polygon pair per pair) as
 a :class:`PairSet`: identical and nearly identical rotations, rotations given
 as quaternions, 4x4 transforms or scipy ``Rotation`` objects, dense nearly
-collinear polygons, local origins far outside the polygon, small objects far
+collinear polygons, local origins far outside the polygon (with the bodies far from the world
+origin, or near it), small objects far
 from the world origin, magnitudes from 1e-12 to 1e12 in one scene, and random
 facing and free poses. In every family a share of the pairs is placed at a
 chosen gap of a fraction of the touching tolerance on both sides of it (from
@@ -185,18 +186,24 @@ def _scene(
     near_share=0.6,
     scale=lambda rng: 1.0,
     where=lambda rng: np.zeros(3),
+    centres_at_where=False,
 ):
-    """Common body of the families: polygons, poses and near-touching placement."""
+    """Common body of the families: polygons, poses and near-touching placement. ``offset``: how far
+    the polygons lie from their local origins (a number, or a function of the generator);
+    ``centres_at_where``: place the end-face centres, not the local origins, about ``where``."""
     xa, xb, pa, pb_, target = [], [], [], [], []
     rots = rot(n) if rot is not None else (random_rotations(n, rng), random_rotations(n, rng))
     for k in range(n):
         s = scale(rng)
-        off = offset * s * rng.normal(size=2)
+        off = (offset(rng) if callable(offset) else offset) * s * rng.normal(size=2)
         A = _valid_polygon(rng, rng.choice(kinds), s * rng.uniform(*radius), off)
         B = _valid_polygon(rng, rng.choice(kinds), s * rng.uniform(*radius), -off)
         centre = where(rng)
         p_a = centre + s * spread * rng.uniform(-1, 1, 3) * 0.3
         p_b = centre + s * spread * rng.uniform(-1, 1, 3)
+        if centres_at_where:  # the world centres near ``where``, however far the polygons are from their origins
+            p_a = p_a - rots[0][k][:, :2] @ Prism(A).centre
+            p_b = p_b - rots[1][k][:, :2] @ Prism(B).centre
         g = np.nan
         if rng.uniform() < near_share:
             g = float(rng.choice(TARGET_GAPS))
@@ -277,6 +284,11 @@ FAMILIES = {
     "scipy_rotation": _scipy,
     "dense_collinear": lambda rng, n: _matrix_family("dense_collinear", rng, n, kinds=("dense",)),
     "far_origin": lambda rng, n: _matrix_family("far_origin", rng, n, offset=1e6),
+    # end faces 1e5-1e10 from their own origins but near the world origin: the rounding of the vertices
+    # about their centre and of the world centres is then far above the world positions' own
+    "far_local_origin": lambda rng, n: _matrix_family(
+        "far_local_origin", rng, n, offset=lambda r: 10.0 ** r.uniform(5, 10), centres_at_where=True
+    ),
     "tiny_far": lambda rng, n: _matrix_family(
         "tiny_far", rng, n, scale=lambda r: 1e-6, where=lambda r: r.uniform(-1e6, 1e6, 3)
     ),
