@@ -10,7 +10,7 @@ support an extreme-vertex search (O(1) to O(log n)).
 GJK and EPA in 3-D see D as a prism cut by the box of C_L (see :mod:`.distance`); on deep overlaps of
 fine polygons EPA's polytope can run out of room or stop on rounding, giving only an upper bound (up
 to 1e8 tol too deep on 3600-gons). :func:`~prismbatch._kernels.distance.pair_distance` comes here
-for those pairs. O(n_a + n_b) supports: tens of microseconds for two 3600-gons.
+for those pairs. O(n_a + n_b) supports: about 120 microseconds a pair for two 3600-gons, 2 for 36-gons.
 """
 
 import math
