@@ -32,6 +32,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..geometry import ccw
+
 __all__ = [
     "Body",
     "sat_separation",
@@ -62,10 +64,9 @@ class Body:
     """One prism in world coordinates: vertices V (n, 3), axis d, end edges E, side normals N, local data."""
 
     def __init__(self, xy, pos, rot):
-        xy = np.asarray(xy, dtype=float)
-        x, y = xy[:, 0], xy[:, 1]
-        if np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y) < 0:
-            xy = xy[::-1]
+        # counter-clockwise by the area about the mean: the shoelace sum of coordinates far from the
+        # origin rounds to the wrong sign on slivers, which flipped every edge normal below
+        xy = ccw(xy)
         self.xy = xy
         self.pos = np.asarray(pos, dtype=float).reshape(3)
         self.rot = np.asarray(rot, dtype=float).reshape(3, 3)

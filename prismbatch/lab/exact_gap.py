@@ -62,12 +62,14 @@ class _Body:
 
     def __init__(self, xy, pos, rot):
         xy = np.asarray(xy, dtype=float)
-        x, y = xy[:, 0], xy[:, 1]
-        if np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y) < 0:
-            xy = xy[::-1]
+        q = [(_q(u), _q(v)) for u, v in xy]
+        # counter-clockwise by the exact area: a float shoelace sum of coordinates far from the origin
+        # rounds to the wrong sign on slivers, and every inside test below would then be inverted
+        if sum(x0 * y1 - x1 * y0 for (x0, y0), (x1, y1) in zip(q, q[1:] + q[:1])) < 0:
+            xy, q = xy[::-1], q[::-1]
         self.fxy = np.ascontiguousarray(xy)
         self.n = len(xy)
-        self.xy = [(_q(u), _q(v)) for u, v in xy]
+        self.xy = q
         R = [[r if isinstance(r, Fraction) else _q(r) for r in row] for row in np.asarray(rot, dtype=object)]
         self.p = tuple(_q(v) for v in pos)
         self.c0 = (R[0][0], R[1][0], R[2][0])

@@ -122,6 +122,24 @@ def test_reference_gap_methods_agree():
     assert n_sep >= 20
 
 
+def test_reference_body_orients_a_sliver_far_from_the_origin():
+    """A counter-clockwise sliver about 1.5e5 from its origin, whose plain shoelace sum rounds negative:
+    the reference body keeps its orientation, so a point inside has a negative residual."""
+    xy = np.vectorize(float.fromhex)(
+        np.array(
+            [
+                ["-0x1.c1b2cb0f4338fp+16", "-0x1.2ca8cee6749a1p+17"],
+                ["-0x1.c1b1ced7fb55fp+16", "-0x1.2ca8c54e2fd41p+17"],
+                ["-0x1.c1b1ced7fb6d3p+16", "-0x1.2ca8c54e2f3b2p+17"],
+                ["-0x1.c1b2cb0f43503p+16", "-0x1.2ca8cee674012p+17"],
+            ]
+        )
+    )
+    body = Body(xy, np.zeros(3), np.eye(3))
+    inside = np.array([[*xy.mean(axis=0), 1.0]])
+    assert residual(body, inside)[0] < 0 < residual(body, inside + [0.0, 0.0, -2.0])[0]
+
+
 def test_reference_sat_on_an_analytic_overlap():
     """Identical prisms in the same pose: the shortest way out is sideways, by the polygon's minimum width."""
     for n, R in ((4, 1.0), (6, 2.0), (5, 1.5), (7, 0.5)):

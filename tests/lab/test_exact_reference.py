@@ -143,3 +143,22 @@ def test_exact_check_writes_valid_json(tmp_path):
     assert doc["pairs_per_family"] == 20 and doc["results"][0]["family"] == "facing"
     assert doc["results"][0]["wrong"] == 0
     assert json_module.loads((tmp_path / "exact_check_wrong.json").read_text()) == []
+
+
+def test_a_sliver_far_from_its_origin_keeps_its_orientation():
+    """A counter-clockwise sliver about 1.5e5 from its origin whose plain float shoelace sum is negative:
+    judged against itself, overlapping, the pair is a certified hit (with the float sign's orientation
+    every inside test was inverted and the verdict was "unknown")."""
+    xy = np.vectorize(float.fromhex)(
+        np.array(
+            [
+                ["-0x1.c1b2cb0f4338fp+16", "-0x1.2ca8cee6749a1p+17"],
+                ["-0x1.c1b1ced7fb55fp+16", "-0x1.2ca8c54e2fd41p+17"],
+                ["-0x1.c1b1ced7fb6d3p+16", "-0x1.2ca8c54e2f3b2p+17"],
+                ["-0x1.c1b2cb0f43503p+16", "-0x1.2ca8cee674012p+17"],
+            ]
+        )
+    )
+    assert judge_pair(xy, np.zeros(3), np.eye(3), xy, np.array([0.0, 0.0, 0.5]), np.eye(3), 1e-3).verdict == "hit"
+    down = np.diag([1.0, -1.0, -1.0])  # facing, end faces 1 apart
+    assert judge_pair(xy, np.zeros(3), np.eye(3), xy, np.array([0.0, 0.0, -1.0]), down, 1e-3).verdict == "miss"
