@@ -12,6 +12,7 @@ import numpy as np
 __all__ = [
     "AXIS_DOWN",
     "signed_area",
+    "exact_area2",
     "ccw",
     "max_radius",
     "centroid_radius",
@@ -31,6 +32,15 @@ def signed_area(xy) -> float:
     p = np.asarray(xy, dtype=float).reshape(-1, 2)
     v = p - p.mean(axis=0)  # well conditioned far from the origin
     return 0.5 * float(np.sum(v[:, 0] * np.roll(v[:, 1], -1) - np.roll(v[:, 0], -1) * v[:, 1]))
+
+
+def exact_area2(xy):
+    """Twice the signed area as an exact ``Fraction`` (floats are exact rationals; entries may be
+    floats or Fractions already)."""
+    from fractions import Fraction
+
+    q = [tuple(v if isinstance(v, Fraction) else Fraction(float(v)) for v in p) for p in xy]
+    return sum(x0 * y1 - x1 * y0 for (x0, y0), (x1, y1) in zip(q, q[1:] + q[:1]))
 
 
 def ccw(xy) -> np.ndarray:

@@ -20,6 +20,7 @@ from ._kernels.batch import pack, unpack
 from ._kernels.planar import edge_search_tables_each
 from .checks import check_memory, format_bytes, real_scalar
 from .config import MAX_VERTICES, MIN_RELATIVE_AREA, MIN_RELATIVE_EDGE, SUPPORTED_RANGE
+from .geometry import exact_area2
 
 __all__ = ["Prism", "PrismSet", "validate_polygon"]
 
@@ -179,7 +180,7 @@ def _raise_first_failure(c, i, arr, name):
             f"{MIN_RELATIVE_EDGE:g}: merge vertices {k} and {(k + 1) % n}"
         )
     if c.thin[i]:
-        if _exact_area2(arr) == 0:
+        if exact_area2(arr) == 0:
             raise ValueError(f"{name}: polygon has zero area (collinear vertices)")
         raise ValueError(
             f"{name}: polygon is too thin: its area is about {abs(c.area2[i]) / 2:.3g} of its size "
@@ -202,14 +203,6 @@ def _vertex_count(xy):
         return len(xy)
     except TypeError:  # not a sequence: validate_polygon says what is wrong with it
         return 0
-
-
-def _exact_area2(xy):
-    """Twice the signed area in exact rational arithmetic (floats are exact rationals)."""
-    from fractions import Fraction
-
-    q = [(Fraction(float(x)), Fraction(float(y))) for x, y in xy]
-    return sum(x0 * y1 - x1 * y0 for (x0, y0), (x1, y1) in zip(q, q[1:] + q[:1]))
 
 
 def _centroids(ccw):

@@ -26,6 +26,18 @@ LARGE_COUNTS = (360, 1000, 3600)
 # ---------------------------------------------------------------------------
 
 
+def sliver_far_from_origin():
+    """A counter-clockwise 4-vertex sliver about 1.5e5 from its local origin whose plain float
+    shoelace sum of the raw coordinates rounds negative (found by an adversarial review)."""
+    rows = [
+        ["-0x1.c1b2cb0f4338fp+16", "-0x1.2ca8cee6749a1p+17"],
+        ["-0x1.c1b1ced7fb55fp+16", "-0x1.2ca8c54e2fd41p+17"],
+        ["-0x1.c1b1ced7fb6d3p+16", "-0x1.2ca8c54e2f3b2p+17"],
+        ["-0x1.c1b2cb0f43503p+16", "-0x1.2ca8cee674012p+17"],
+    ]
+    return np.array([[float.fromhex(v) for v in row] for row in rows])
+
+
 def _ccw(xy):
     x, y = xy[:, 0], xy[:, 1]
     area2 = np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y)

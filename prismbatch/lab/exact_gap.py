@@ -23,6 +23,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..geometry import exact_area2
+
 __all__ = ["Judgement", "judge_pair", "gap_bounds", "check_contact", "exact_quat_matrix"]
 
 F0 = Fraction(0)
@@ -65,7 +67,7 @@ class _Body:
         q = [(_q(u), _q(v)) for u, v in xy]
         # counter-clockwise by the exact area: a float shoelace sum of coordinates far from the origin
         # rounds to the wrong sign on slivers, and every inside test below would then be inverted
-        if sum(x0 * y1 - x1 * y0 for (x0, y0), (x1, y1) in zip(q, q[1:] + q[:1])) < 0:
+        if exact_area2(q) < 0:
             xy, q = xy[::-1], q[::-1]
         self.fxy = np.ascontiguousarray(xy)
         self.n = len(xy)

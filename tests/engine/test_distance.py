@@ -42,6 +42,7 @@ from helpers import (
     rot_z,
     sample_vertex_count,
     separating_directions,
+    sliver_far_from_origin,
     vertical_pairs,
 )
 
@@ -125,16 +126,7 @@ def test_reference_gap_methods_agree():
 def test_reference_body_orients_a_sliver_far_from_the_origin():
     """A counter-clockwise sliver about 1.5e5 from its origin, whose plain shoelace sum rounds negative:
     the reference body keeps its orientation, so a point inside has a negative residual."""
-    xy = np.vectorize(float.fromhex)(
-        np.array(
-            [
-                ["-0x1.c1b2cb0f4338fp+16", "-0x1.2ca8cee6749a1p+17"],
-                ["-0x1.c1b1ced7fb55fp+16", "-0x1.2ca8c54e2fd41p+17"],
-                ["-0x1.c1b1ced7fb6d3p+16", "-0x1.2ca8c54e2f3b2p+17"],
-                ["-0x1.c1b2cb0f43503p+16", "-0x1.2ca8cee674012p+17"],
-            ]
-        )
-    )
+    xy = sliver_far_from_origin()
     body = Body(xy, np.zeros(3), np.eye(3))
     inside = np.array([[*xy.mean(axis=0), 1.0]])
     assert residual(body, inside)[0] < 0 < residual(body, inside + [0.0, 0.0, -2.0])[0]

@@ -20,6 +20,8 @@ from scipy.spatial.transform import Rotation
 
 from prismbatch.lab.exact_gap import check_contact, exact_quat_matrix, gap_bounds, judge_pair
 
+from helpers import sliver_far_from_origin
+
 pytest.importorskip("highspy")
 
 pytestmark = [pytest.mark.slow]
@@ -149,16 +151,7 @@ def test_a_sliver_far_from_its_origin_keeps_its_orientation():
     """A counter-clockwise sliver about 1.5e5 from its origin whose plain float shoelace sum is negative:
     judged against itself, overlapping, the pair is a certified hit (with the float sign's orientation
     every inside test was inverted and the verdict was "unknown")."""
-    xy = np.vectorize(float.fromhex)(
-        np.array(
-            [
-                ["-0x1.c1b2cb0f4338fp+16", "-0x1.2ca8cee6749a1p+17"],
-                ["-0x1.c1b1ced7fb55fp+16", "-0x1.2ca8c54e2fd41p+17"],
-                ["-0x1.c1b1ced7fb6d3p+16", "-0x1.2ca8c54e2f3b2p+17"],
-                ["-0x1.c1b2cb0f43503p+16", "-0x1.2ca8cee674012p+17"],
-            ]
-        )
-    )
+    xy = sliver_far_from_origin()
     assert judge_pair(xy, np.zeros(3), np.eye(3), xy, np.array([0.0, 0.0, 0.5]), np.eye(3), 1e-3).verdict == "hit"
     down = np.diag([1.0, -1.0, -1.0])  # facing, end faces 1 apart
     assert judge_pair(xy, np.zeros(3), np.eye(3), xy, np.array([0.0, 0.0, -1.0]), down, 1e-3).verdict == "miss"
