@@ -16,6 +16,7 @@ import numpy as np
 
 from ._kernels.batch import use_parallel, work_blocks
 from ._kernels.distance import (
+    AXES_DEPTH,
     EPA_DEPTH,
     EPA_ROOM,
     EPA_STOPPED,
@@ -56,6 +57,8 @@ SOLVERS = {
     "the gap reported is an upper bound, attained by the witness points",
     PLANAR_DEPTH: "exactly parallel axes pointing the same way, where EPA stopped early: the depth of the end faces' "
     "overlap in the plane (exact)",
+    AXES_DEPTH: "other axes pointing the same way (nearly parallel), where EPA stopped early: the depth by the "
+    "separating-axis theorem over the Minkowski difference's candidate facet normals (exact to rounding)",
 }
 
 

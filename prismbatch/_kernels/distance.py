@@ -33,7 +33,7 @@ from numba import prange
 from .batch import centres_world, pair_tolerance, unpack
 from .jit import jit, twins
 from .minkowski import cone_box, point_a, support
-from .parallel import parallel_overlap
+from .parallel import parallel_overlap, tilted_overlap
 from .vec3 import cross, diff, dot, row, sub
 
 SEPARATED, TOUCHING, PENETRATING = 1, 0, -1
@@ -58,8 +58,9 @@ SEEN_SLACK = 1e-2
 #: returned is then an upper bound, the last face offset a lower one); no volume around the origin (touching);
 #: GJK stalled on rounding with a gap proven (the gap returned is an upper bound, attained by the witnesses);
 #: the depth of exactly parallel axes pointing the same way, from their end faces in the plane (where EPA
-#: stopped early on them: :mod:`.parallel`).
-GJK_GAP, EPA_DEPTH, EPA_STOPPED, FLAT, GJK_STALLED, PLANAR_DEPTH = 0, 1, 2, 3, 4, 5
+#: stopped early on them: :mod:`.parallel`); the depth of other axes pointing the same way (nearly parallel:
+#: EPA has only stopped on those) by the separating-axis theorem, where EPA stopped early.
+GJK_GAP, EPA_DEPTH, EPA_STOPPED, FLAT, GJK_STALLED, PLANAR_DEPTH, AXES_DEPTH = 0, 1, 2, 3, 4, 5, 6
 
 
 # --- closest point of a simplex to the origin (Ericson's Voronoi-region tests) ------------------------
@@ -528,6 +529,11 @@ def pair_distance(P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, rtol, atol, eps, witnes
             if not witness:
                 nrm = pa = (math.nan, math.nan, math.nan)
             return -depth, tol, PLANAR_DEPTH, nrm, pa
+        if code == EPA_STOPPED and s > 0.0:
+            # nearly parallel (D's facets nearly coplanar in a thin slab): the depth by the
+            # separating-axis theorem over D's candidate facet normals, exact to rounding
+            dist, (nx, ny, nz) = tilted_overlap(P, ix, Ra, Rb, dx, dy, dz, ex, ey, ez)
+            code = AXES_DEPTH
     nan = math.nan
     if not witness:
         return dist, tol, code, (nan, nan, nan), (nan, nan, nan)

@@ -24,13 +24,14 @@ from scipy.spatial.transform import Rotation
 
 import prismbatch as pb
 from prismbatch.collide import pair_scale_tolerance
-from prismbatch.distance import EPA_STOPPED, PENETRATING, SEPARATED, TOUCHING, DistanceResult, distance
+from prismbatch.distance import AXES_DEPTH, EPA_STOPPED, PENETRATING, SEPARATED, TOUCHING, DistanceResult, distance
 from prismbatch.lab.distance_ref import Body, gap_features, gap_qp, residual, sat_separation
 from prismbatch.sampling import free_poses
 
 from helpers import (
     bisect_to_contact,
     count_pairs_sent,
+    family_polygon,
     make_pairs,
     overlapping_pairs,
     pairs_from_rows,
@@ -309,6 +310,77 @@ def test_planar_depth_of_parallel_axes_against_the_reference():
     assert checked > 60
 
 
+def test_depth_of_nearly_parallel_axes_against_the_reference():
+    """The separating-axis depth that takes over where EPA stops on nearly parallel, same-way axes,
+    called directly on tilted pairs (tilts 1e-12 to 0.3 rad, and none) of random, dense nearly
+    collinear and skinny polygons, and at any angle below 90 degrees: its value against the reference's
+    separating-axis value where they overlap (minus the depth), no larger where they are apart, and its
+    normal unit."""
+    from prismbatch._kernels.batch import centres_world
+    from prismbatch._kernels.parallel import tilted_overlap
+
+    rng = np.random.default_rng(23)
+    overlaps = 0
+    for k in range(300):
+        family = ("smallmed", "collinear", "skinny")[k % 3]
+        A, B = family_polygon(rng, family), family_polygon(rng, "smallmed")
+        Ra = Rotation.random(random_state=rng).as_matrix()
+        tilt = 10 ** rng.uniform(-12, -0.5) if k % 8 else 0.0
+        if k % 5 == 4:  # any angle below 90 degrees (every pair of end edges a candidate)
+            tilt = rng.uniform(0.3, 1.5)
+        ax = rng.normal(size=3)
+        ax -= (ax @ Ra[:, 2]) * Ra[:, 2]
+        Rb = Rotation.from_rotvec(ax / np.linalg.norm(ax) * tilt).as_matrix() @ Ra @ rot_z(rng.uniform(0, 6.3))
+        pa = rng.uniform(-2, 2, 3)
+        off = Ra @ np.array([*rng.uniform(-0.7, 0.7, 2) * (polygon_radius(A) + polygon_radius(B)), rng.uniform(-2, 2)])
+        pb_ = pa + Ra[:, :2] @ polygon_centre(A) + off - Rb[:, :2] @ polygon_centre(B)
+        sep, _ = sat_separation(Body(A, pa, Ra), Body(B, pb_, Rb))
+        sa, sb = (pb.PrismSet([X]).kernel_arrays(np.float64) for X in (A, B))
+        P = (sa.vx, sa.vy, sa.edge_angle, sa.edge_table, sb.vx, sb.vy, sb.edge_angle, sb.edge_table)
+        o_d = centres_world(sa.centre[0, 0], sa.centre[0, 1], sb.centre[0, 0], sb.centre[0, 1], pa, Ra, pb_, Rb)
+        e = Rb[:, 2] - Ra[:, 2]
+        value, n = tilted_overlap(P, (0, len(sa.vx), 0, len(sb.vx)), Ra, Rb, *o_d[3:], *e)
+        n = np.array(n)
+        tol = pair_scale_tolerance(pb.Prism(A), pb.Prism(B), pa[None], Ra[None], pb_[None], Rb[None])[1][0]
+        # the reference's axes hold these; apart, the largest separation need not be along a facet
+        # normal of D (the gap may be attained at an edge or vertex of D): then only a lower bound
+        assert (abs(value - sep) if sep < 0 else value - sep) <= 10 * tol, (k, family, tilt, value, sep)
+        assert abs(np.linalg.norm(n) - 1) < 1e-12
+        overlaps += sep < 0
+    assert overlaps > 180
+
+
+#: Two regular 3600-gons (radii 2 and 2.5), b's axis tilted 3.7e-6 rad from a's: EPA ran out of room
+#: and reported a depth 1.95e6 tol too deep (as "an upper bound") before the separating-axis depth.
+TILTED_PAIR = (
+    ("-0x1.27593276ef1dbp+2", "0x1.1054311b0c220p+1", "0x1.d0b559774ebd4p+1"),
+    ("0x1.4c84f2de95633p-1", "0x1.63b2deecc63d9p-2", "-0x1.5a547de595586p-1", "-0x1.313e15fcfeb4bp-2",
+     "0x1.de8c33172d063p-1", "0x1.8cd86d46727b9p-3", "0x1.662a0dac51542p-1", "0x1.366e8a9b15de6p-4",
+     "0x1.6bcef8356ab59p-1"),
+    ("-0x1.15b096a42577dp+1", "0x1.2a2e3186a4d32p-1", "0x1.4e8d35ed462a2p+1"),
+    ("0x1.4c84e765135a6p-1", "0x1.63b239cef51bap-2", "-0x1.5a54b34f36a1cp-1", "-0x1.313e0f6a06a82p-2",
+     "0x1.de8c4abd86475p-1", "0x1.8cd6b9326cac2p-3", "0x1.662a19ba11c8ap-1", "0x1.3671406714f35p-4",
+     "0x1.6bcee31778fd5p-1"),
+)  # fmt: skip
+
+
+def test_nearly_parallel_3600_gons_where_epa_stopped():
+    """The recorded pair through the API: the depth against the separating-axis reference, the
+    witnesses on their bodies and apart by distance times the normal."""
+    a, b = pb.Prism.regular(3600, 2.0), pb.Prism.regular(3600, 2.5)
+    pa, Ra, pb_, Rb = (np.array([float.fromhex(x) for x in v]) for v in TILTED_PAIR)
+    Ra, Rb = Ra.reshape(3, 3), Rb.reshape(3, 3)
+    A, B = Body(a.xy, pa, Ra), Body(b.xy, pb_, Rb)
+    sep, _ = sat_separation(A, B)
+    for parallel in (False, True):
+        r = distance(a, b, pa, Ra, pb_, Rb, witness=True, parallel=parallel)
+        tol = r.tol[0]
+        assert r.solver[0] == AXES_DEPTH and r.status[0] == PENETRATING
+        assert abs(r.distance[0] - sep) <= 10 * tol, (r.distance[0], sep)
+        assert max(abs(residual(A, r.point_a)[0]), abs(residual(B, r.point_b)[0])) <= tol
+        np.testing.assert_allclose(r.point_b - r.point_a, r.distance[:, None] * r.normal, rtol=0, atol=tol)
+
+
 def _tilted(rng, n, tilt, facing):
     """b's axis parallel (or antiparallel) to a's, tilted by ``tilt`` about a random axis across it."""
     rows = []
@@ -481,7 +553,8 @@ def test_serial_and_parallel_agree_exactly():
 def test_pairs_out_of_the_batch_room_are_rerun(monkeypatch, parallel):
     """The batch loop runs EPA in a fixed room and reruns the pairs that run out of it with more:
     with the batch's room cut to 6 vertices, most penetrating pairs take the rerun, and every
-    output is the same to the bit."""
+    output is the same to the bit; except that pairs whose axes point the same way take the
+    separating-axis depth where EPA stops, which agrees with EPA's depth (both exact) within tol."""
     dist_mod = importlib.import_module("prismbatch.distance")  # the module: the package's name is the function
 
     rng = np.random.default_rng(43)
@@ -492,9 +565,13 @@ def test_pairs_out_of_the_batch_room_are_rerun(monkeypatch, parallel):
     monkeypatch.setattr(dist_mod, "EPA_ROOM", (6,))
     rerun = count_pairs_sent(monkeypatch, dist_mod, "rerun_parallel" if parallel else "rerun_serial", 9)
     got = col.distance(*poses, witness=True, parallel=parallel)
-    assert rerun and rerun[0] > 100 and (want.solver == 1).sum() > 200
+    axes = got.solver == AXES_DEPTH
+    assert rerun and rerun[0] > 100 and (want.solver == 1).sum() > 200 and axes.sum() > 50
+    assert (np.einsum("ij,ij->i", ra[:, :, 2], rb[:, :, 2]) > 0)[axes].all()
     for name in ("distance", "status", "tol", "solver", "normal", "point_a", "point_b"):
-        np.testing.assert_array_equal(getattr(got, name), getattr(want, name))
+        np.testing.assert_array_equal(getattr(got, name)[~axes], getattr(want, name)[~axes])
+    assert (np.abs(got.distance - want.distance) <= got.tol)[axes].all()
+    np.testing.assert_allclose(got.point_b - got.point_a, got.distance[:, None] * got.normal, rtol=0, atol=1e-12)
 
 
 def test_tolerance_is_collides():

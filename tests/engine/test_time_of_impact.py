@@ -9,6 +9,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import prismbatch as pb
+from prismbatch.collide import pair_scale_tolerance
 from prismbatch.motion import CLEAR, CONTACT, UNDECIDED, time_of_impact
 from prismbatch.sampling import free_poses
 
@@ -542,7 +543,9 @@ def test_thin_body_tumbling_fast_needs_the_turn_of_its_face():
 def test_pairs_out_of_the_batch_room_are_rerun(monkeypatch, parallel):
     """The batch loop runs the distance's EPA in a fixed room and reruns the pairs that run out of
     it with the largest: with the batch's room cut to 6 vertices, the motions that start in
-    contact take the rerun, and every output is the same to the bit."""
+    contact take the rerun, and every output is the same to the bit; except that where the axes
+    point the same way the depth comes from the separating-axis theorem where EPA stops (both
+    exact): the initial depth and the contact then agree within the tolerance."""
     motion_mod = importlib.import_module("prismbatch.motion")
     rng = np.random.default_rng(47)
     col = pb.Collider(pb.Prism.regular(36, 2.0), pb.Prism.regular(37, 2.5))
@@ -555,5 +558,12 @@ def test_pairs_out_of_the_batch_room_are_rerun(monkeypatch, parallel):
     rerun = count_pairs_sent(monkeypatch, motion_mod, "toi_rerun_parallel" if parallel else "toi_rerun_serial", 10)
     got = col.time_of_impact(pa, ra, pbb, rb, v, w, **kw)
     assert rerun and rerun[0] > 50 and (want.time == 0).sum() > 50
+    same_way = np.einsum("ij,ij->i", ra[:, :, 2], rb[:, :, 2]) > 0
+    tol = pair_scale_tolerance(pb.Prism.regular(36, 2.0), pb.Prism.regular(37, 2.5), pa, ra, pbb, rb)[1]
     for name, value in want.columns().items():
-        np.testing.assert_array_equal(got.columns()[name], value)
+        np.testing.assert_array_equal(got.columns()[name][~same_way], value[~same_way])
+        if name.startswith(("distance", "contact")):  # NaN where there is none, in both
+            g = got.columns()[name]
+            assert ((np.abs(g - value) <= tol) | (np.isnan(g) & np.isnan(value)))[same_way].all()
+        else:
+            np.testing.assert_array_equal(got.columns()[name], value)
