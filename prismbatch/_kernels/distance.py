@@ -532,8 +532,9 @@ def pair_distance(P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, rtol, atol, eps, witnes
         if code == EPA_STOPPED and s > 0.0:
             # nearly parallel (D's facets nearly coplanar in a thin slab): the depth by the
             # separating-axis theorem over D's candidate facet normals, exact to rounding
-            dist, (nx, ny, nz) = tilted_overlap(P, ix, Ra, Rb, dx, dy, dz, ex, ey, ez)
-            code = AXES_DEPTH
+            sep, n_sat = tilted_overlap(P, ix, Ra, Rb, dx, dy, dz, ex, ey, ez)
+            if sep > -math.inf:  # (some candidate always has finite supports: a guard)
+                dist, (nx, ny, nz), code = sep, n_sat, AXES_DEPTH
     nan = math.nan
     if not witness:
         return dist, tol, code, (nan, nan, nan), (nan, nan, nan)

@@ -1,0 +1,265 @@
+#!/usr/bin/env python
+"""Where collide's time goes: the per-pair kernel taken apart in stages, path by path.
+
+Each stage is a compiled loop over the same pose pairs that does what the kernel does up to a
+point, built from the kernel's own inlined pieces (``prismbatch._kernels``), so the difference
+between two stages is what that step costs per pair:
+
+1. the floor: read both poses, b's height along a's axis and the axes' cosine, one compare
+   (``bench_floor.py``'s loop);
+2. the relative pose: a's end-face centre and b's in world axes, the exact inverse of a's
+   rotation, b's position and rotation in a's centred frame, the axes' exact difference;
+3. the pair tolerance (its square roots: ``|c_b - c_a|``, ``|c_a|``, ``|c_b|``);
+4. the radius exit (case 1 proven from b's circumradius and tilt: one more square root);
+5. b's deepest vertex (an extreme-vertex search: bucket lookup and binary search) and the
+   vertex exit;
+6. the early-accept tests: whether b's deepest vertex and its end-face centre project into a's
+   polygon (two point-in-polygon searches), and b's highest vertex (the planar GJK's start),
+   for every pair that passed stage 5 (the kernel skips some of these after its coarse tests,
+   so on the mixes this stage is an upper bound of their cost);
+7. the whole kernel (``collide_serial`` on the prepared arrays, no contact);
+8. ``Collider.collide(..., parallel=False)``: the Python entry, which checks and converts the
+   poses (finite, orthonormal to the tolerance, in range) before the kernel.
+
+Stages 2-5 run for every pair whatever the pair's path (they stop where the kernel would go on),
+so on pairs that leave early stage 5 is the kernel's work, and on case-6 pairs the step from
+stage 6 to the kernel is the coarse tests and the planar GJK. The planar GJK's iteration count on those pairs
+comes from the kernel's trace (``Collider.explain``) on a sample.
+
+One query (``Collider.collide_pair`` on one plain pair of 36-gons), taken apart the same way: a
+trivial ``@njit`` call with the same four pose arrays; the compiled one-pair kernel called with
+all its arguments (the two prism arrays of each shape, the four poses, six scalars: each crosses
+Numba's dispatcher, which types and unboxes it); then the contact as a NumPy array; then the
+result tuple; then the whole method (its checks of the call's form).
+
+One thread, medians over repeats, all figures from one run:
+
+    python benchmarks/profile_collide.py [--quick] [--out DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from pathlib import Path
+
+import numba
+import numpy as np
+
+import prismbatch as pb
+from prismbatch._kernels.batch import (
+    centres_world,
+    collide_pair,
+    collide_serial,
+    frame_inverse,
+    pair_tolerance,
+    relative_pose,
+)
+from prismbatch._kernels.planar import extreme_vertex, point_polygon_distance
+from prismbatch._kernels.projection import surely_above, surely_above_by_radius
+from prismbatch.collide import PairResult
+from prismbatch.config import SUPPORTED_RANGE
+from prismbatch.lab.report import fmt, run_metadata, write_json
+from prismbatch.lab.timing import stats, threads, timed_loops
+from prismbatch.poses import ortho_tolerance
+from prismbatch.sampling import facing_poses, free_poses
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_floor import RADIUS_A, RADIUS_B, _floor_loop, _subset, _trivial  # noqa: E402  (the same floor)
+
+STAGES = (
+    "floor",
+    "relative pose",
+    "tolerance",
+    "radius exit",
+    "vertex exit",
+    "early accept",
+    "kernel",
+    "Collider.collide",
+)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _staged(stage, A, B, pos_a, rot_a, pos_b, rot_b, rtol, eps, out):
+    """The kernel's steps for one prism pair up to ``stage`` (2 to 6): ``out[i]`` depends on each
+    step's result, so no step is left out by the compiler."""
+    avx, avy, avang, ainv, aoff, arad, acen = A
+    bvx, bvy, beang, betab, boff, brad, bcen = B
+    acx, acy, bcx, bcy = acen[0, 0], acen[0, 1], bcen[0, 0], bcen[0, 1]
+    sb, nb = boff[0], boff[1] - boff[0]
+    for i in range(pos_a.shape[0]):
+        Pa, Ra, Pb, Rb = pos_a[i], rot_a[i], pos_b[i], rot_b[i]
+        ox, oy, oz, dx, dy, dz = centres_world(acx, acy, bcx, bcy, Pa, Ra, Pb, Rb)
+        inv = frame_inverse(Ra)
+        px, py, pz, r00, r01, r10, r11, r20, r21 = relative_pose(inv, dx, dy, dz, Rb)
+        s = 1.0 if Ra[0, 2] * Rb[0, 2] + Ra[1, 2] * Rb[1, 2] + Ra[2, 2] * Rb[2, 2] >= 0.0 else -1.0
+        ex, ey, ez = Rb[0, 2] - s * Ra[0, 2], Rb[1, 2] - s * Ra[1, 2], Rb[2, 2] - s * Ra[2, 2]
+        r22 = s + (inv[6] * ex + inv[7] * ey + inv[8] * ez)
+        if stage == 2:
+            out[i] = pz + r22 + r00 + r11 > 0.0
+            continue
+        cd = math.sqrt(px * px + py * py + pz * pz)
+        tol = pair_tolerance(arad[0], brad[0], cd, ox, oy, oz, dx, dy, dz, acx, acy, bcx, bcy, rtol, 0.0, eps)
+        if stage == 3:
+            out[i] = pz + r22 > tol
+            continue
+        above = surely_above_by_radius(pz, r20, r21, r22, brad[0], tol)
+        if stage == 4 or above:
+            out[i] = above
+            continue
+        imax = extreme_vertex(bvx, bvy, beang, betab, sb, nb, r20, r21)
+        above = surely_above(bvx, bvy, sb, imax, pz, r20, r21, r22, tol)
+        if stage == 5 or above:
+            out[i] = above
+            continue
+        r02, r12 = inv[0] * ex + inv[1] * ey + inv[2] * ez, inv[3] * ex + inv[4] * ey + inv[5] * ez
+        tx = px + r00 * bvx[sb + imax] + r01 * bvy[sb + imax]
+        ty = py + r10 * bvx[sb + imax] + r11 * bvy[sb + imax]
+        inside = point_polygon_distance(avx, avy, avang, ainv, 0, aoff[1], tx, ty) >= 0.0
+        inside |= point_polygon_distance(avx, avy, avang, ainv, 0, aoff[1], px, py) >= 0.0
+        imin = extreme_vertex(bvx, bvy, beang, betab, sb, nb, -r20, -r21)
+        out[i] = inside or imin + r02 + r12 > 0.0
+
+
+def _per_pair_ns(fn, n, repeats):
+    return 1e9 * stats(timed_loops({"f": fn}, repeats)["f"])["median"] / n
+
+
+def stage_rows(n_vertices, n_pairs, repeats, rng):
+    """Per-pair ns of every stage on each pose kind at one polygon size."""
+    a, b = pb.Prism.regular(n_vertices, RADIUS_A), pb.Prism.regular(n_vertices, RADIUS_B)
+    col = pb.Collider(a, b)
+    ka, kb = pb.PrismSet([a.xy]).kernel_arrays(), pb.PrismSet([b.xy]).kernel_arrays()
+    A = (ka.vx, ka.vy, ka.vertex_angle, ka.inv_edge_len, ka.offsets, ka.radius, ka.centre)
+    B = (kb.vx, kb.vy, kb.edge_angle, kb.edge_table, kb.offsets, kb.radius, kb.centre)
+    rtol, eps = col.rtol, float(np.finfo(np.float64).eps)
+    facing = tuple(np.ascontiguousarray(x) for x in facing_poses(n_pairs, rng, radius=RADIUS_B))
+    free = tuple(np.ascontiguousarray(x) for x in free_poses(n_pairs, rng, radius=RADIUS_B))
+    case = col.collide(*facing, parallel=False).case
+    sets = {
+        "early exits (cases 1, 5)": _subset(facing, (case == 1) | (case == 5)),
+        "GJK pairs (case 6)": _subset(facing, case == 6),
+        "facing mix": facing,
+        "free poses": free,
+    }
+    rows = []
+    for name, poses in sets.items():
+        n = len(poses[0])
+        out = np.empty(n, dtype=np.bool_)
+        hit, cs, cont = np.empty(n, np.bool_), np.empty(n, np.int8), np.empty((0, 3))
+        fns = {
+            "floor": lambda p=poses, o=out: _floor_loop(*p, o),
+            **{
+                STAGES[k - 1]: (lambda k=k, p=poses, o=out: _staged(k, A, B, *p, rtol, eps, o)) for k in (2, 3, 4, 5, 6)
+            },
+            "kernel": lambda p=poses: collide_serial(
+                ka.floats, ka.ints, kb.floats, kb.ints, *p, rtol, 0.0, eps, False, hit, cs, cont
+            ),  # fmt: skip
+            "Collider.collide": lambda p=poses: col.collide(*p, parallel=False),
+        }
+        times = timed_loops(fns, repeats)  # interleaved passes: drift hits every stage alike
+        row = {"vertices": n_vertices, "set": name, "pairs": n}
+        row.update({k: 1e9 * stats(v)["median"] / n for k, v in times.items()})
+        rows.append(row)
+    return rows
+
+
+def gjk_iterations(n_vertices, n_pairs, rng):
+    """The planar GJK's iterations on a sample of case-6 pairs (from the kernel's trace)."""
+    a, b = pb.Prism.regular(n_vertices, RADIUS_A), pb.Prism.regular(n_vertices, RADIUS_B)
+    col = pb.Collider(a, b)
+    facing = facing_poses(20 * n_pairs, rng, radius=RADIUS_B)
+    idx = np.flatnonzero(col.collide(*facing, parallel=False).case == 6)[:n_pairs]
+    its = np.array([col.explain(*(x[i] for x in facing))["gjk_iterations"] for i in idx], dtype=float)
+    its = its[np.isfinite(its)]
+    return {
+        "vertices": n_vertices,
+        "pairs": int(len(its)),
+        "mean": float(its.mean()) if len(its) else math.nan,
+        "p50": float(np.median(its)) if len(its) else math.nan,
+        "p95": float(np.percentile(its, 95)) if len(its) else math.nan,
+        "max": float(its.max()) if len(its) else math.nan,
+    }
+
+
+def latency_steps(repeats):
+    """ns per call of each step of one ``collide_pair`` query (36-gons, one facing pair)."""
+    a, b = pb.Prism.regular(36, RADIUS_A), pb.Prism.regular(36, RADIUS_B)
+    col = pb.Collider(a, b)
+    ka, kb = pb.PrismSet([a.xy]).kernel_arrays(), pb.PrismSet([b.xy]).kernel_arrays()
+    one = tuple(np.ascontiguousarray(x[0]) for x in facing_poses(1, np.random.default_rng(1), radius=RADIUS_B))
+    f64 = np.dtype(np.float64)
+    scalars = (col.rtol, 0.0, float(np.finfo(f64).eps), ortho_tolerance(f64, f64), ortho_tolerance(f64, f64),
+               SUPPORTED_RANGE["float64"][1])  # fmt: skip
+    kernel = collide_pair[f64]
+    shapes = (ka.floats, ka.ints, kb.floats, kb.ints)
+
+    calls = {
+        "trivial @njit call, same 4 arrays": lambda: _trivial(*one),
+        "one-pair kernel, all 14 arguments": lambda: kernel(*shapes, *one, *scalars),
+        # one expression each (walrus), so that no step adds a Python call of its own
+        "+ the contact as an array": lambda: ((o := kernel(*shapes, *one, *scalars)), np.array((o[4], o[5], o[6]))),
+        "+ the result tuple": lambda: (
+            (o := kernel(*shapes, *one, *scalars)),
+            PairResult(o[2], o[3], np.array((o[4], o[5], o[6]))),
+        ),
+        "Collider.collide_pair": lambda: col.collide_pair(*one),
+    }
+    loops = 2000
+
+    def many(f):
+        def run():
+            for _ in range(loops):
+                f()
+
+        return run
+
+    times = timed_loops({k: many(f) for k, f in calls.items()}, repeats)
+    return {k: 1e9 * stats(v)["median"] / loops for k, v in times.items()}
+
+
+def markdown(res):
+    lines = [
+        "| vertices | pose set | " + " | ".join(f"{s} (ns)" for s in STAGES) + " |",
+        "|---" * (2 + len(STAGES)) + "|",
+    ]
+    for r in res["stages"]:
+        lines.append(f"| {r['vertices']:,} | {r['set']} | " + " | ".join(fmt(r[s], ".3g") for s in STAGES) + " |")
+    lines += ["", "| vertices | case-6 pairs traced | GJK iterations: mean | median | 95th percentile | max |",
+              "|---|---|---|---|---|---|"]  # fmt: skip
+    for g in res["gjk"]:
+        lines.append(
+            f"| {g['vertices']:,} | {g['pairs']} | {g['mean']:.2f} | {g['p50']:g} | {g['p95']:g} | {g['max']:g} |"
+        )
+    lines += ["", "| one query, step by step | ns per call |", "|---|---|"]
+    lines += [f"| {k} | {fmt(v, '.0f')} |" for k, v in res["latency"].items()]
+    return "\n".join(lines)
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--quick", action="store_true", help="small sets and few repeats (a smoke run)")
+    ap.add_argument("--repeats", type=int, default=None, help="timed passes per figure (default 7, quick 3)")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--out", type=Path, default=None, help="write profile.md and profile.json here")
+    args = ap.parse_args(argv)
+    repeats = args.repeats or (3 if args.quick else 7)
+    n_pairs = 20_000 if args.quick else 200_000
+    rng = np.random.default_rng(args.seed)
+    with threads(1):
+        stages = [r for nv in (36, 3600) for r in stage_rows(nv, n_pairs, repeats, rng)]
+        latency = latency_steps(repeats)
+    gjk = [gjk_iterations(nv, 50 if args.quick else 500, rng) for nv in (36, 3600)]
+    res = {"stages": stages, "gjk": gjk, "latency": latency, "pairs": n_pairs}
+    text = markdown(res)
+    print(text)
+    if args.out is not None:
+        args.out.mkdir(parents=True, exist_ok=True)
+        (args.out / "profile.md").write_text(text + "\n")
+        write_json(args.out / "profile.json", dict(res, meta=run_metadata(repeats=repeats, seed=args.seed)))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
