@@ -337,10 +337,9 @@ class Collider:
             except TypeError:  # another dtype or layout, a read-only array, not an array
                 out = None
             if out is not None and out[0] != _batch.PAIR_SHAPE_PROBLEM:
-                problem, val, hit, case, cx, cy, cz = out
-                if problem:
-                    raise ValueError(_pair_problem(problem, val, self._pair_scalars[3], self._max_magnitude))
-                return PairResult(hit, case, np.array((cx, cy, cz)))
+                if out[0]:
+                    raise ValueError(_pair_problem(out[0], out[1], self._pair_scalars[3], self._max_magnitude))
+                return _pair_result(out)
         return self._converted_pair(pos_a, rot_a, pos_b, rot_b, quat_order)
 
     def _converted_pair(self, pos_a, rot_a, pos_b, rot_b, quat_order):
@@ -357,10 +356,10 @@ class Collider:
             out = first_call(self._pair_kernel, self._pair_kernel, *args)
             self._pair_kernel.disable_compile()
             _pair_closed[self.dtype] = True
-        problem, val, hit, case, cx, cy, cz = out
+        problem, val = out[0], out[1]
         if problem:
             raise ValueError(_pair_problem(problem, val, ta if problem <= 4 else tb, self._max_magnitude))
-        return PairResult(hit, case, np.array((cx, cy, cz)))
+        return _pair_result(out)
 
     def explain(self, pos_a, rot_a, pos_b, rot_b):
         """Step-by-step record of how one pose pair is decided (for ``prismbatch replay``).
@@ -496,6 +495,15 @@ class PairResult(NamedTuple):
     hit: bool
     case: int
     contact: np.ndarray
+
+
+_new_tuple = tuple.__new__
+
+
+def _pair_result(out):
+    """The PairResult of the one-pair kernel's ``(problem, value, hit, case, cx, cy, cz)``, built with
+    tuple.__new__ (the class's own __new__ is one more Python call: some 50 ns of a 1.8 µs query)."""
+    return _new_tuple(PairResult, (out[2], out[3], np.array(out[4:])))
 
 
 def collide(
