@@ -32,7 +32,7 @@ from numba import prange
 
 from .batch import centres_world, pair_tolerance, unpack
 from .jit import jit, twins
-from .minkowski import cone_box, point_a, support
+from .minkowski import cut_difference, point_a, support
 from .parallel import parallel_overlap, tilted_overlap
 from .vec3 import cross, diff, dot, row, sub
 
@@ -48,7 +48,8 @@ EPS64 = float(np.finfo(np.float64).eps)
 GJK_MAX_ITER = 128
 #: EPA's room in vertices: tried in turn while it runs out (128 hold 99.99 % of 3600-gon pairs; 100,000-gons
 #: need up to ~600); it has 8 faces per vertex. The batch loops hold one workspace of the first per block
-#: and send the rare pair that runs out of it to a second pass with the last.
+#: and send the rare pair that runs out of it to a second pass with the last (pairs whose axes point the same
+#: way take the separating-axis depth instead, at their first stop).
 EPA_ROOM = (128, 1024, 8192)
 #: A face counts as seen from a new point up to this fraction of the accuracy below its plane: on nearly
 #: coplanar faces (100,000-gons) rounding would otherwise leave an unseen face inside the seen region.
@@ -503,12 +504,7 @@ def pair_distance(P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, rtol, atol, eps, witnes
     L = BOX * S
     acc = max(ACC_FRACTION * tol, ACC_EPS * EPS64 * L)
     loose = max(LOOSE_FRACTION * tol, acc)
-    fr = (Ra[0, 0], Ra[1, 0], Ra[2, 0], Ra[0, 1], Ra[1, 1], Ra[2, 1])
-    fr = fr + (Rb[0, 0], Rb[1, 0], Rb[2, 0], Rb[0, 1], Rb[1, 1], Rb[2, 1], dx, dy, dz)
-    s = 1.0 if Ra[0, 2] * Rb[0, 2] + Ra[1, 2] * Rb[1, 2] + Ra[2, 2] * Rb[2, 2] >= 0.0 else -1.0
-    ex, ey, ez = Rb[0, 2] - s * Ra[0, 2], Rb[1, 2] - s * Ra[1, 2], Rb[2, 2] - s * Ra[2, 2]  # exact
-    dax, day, daz = np.float64(Ra[0, 2]), np.float64(Ra[1, 2]), np.float64(Ra[2, 2])  # float64 for float32 data
-    cone = cone_box(dax, day, daz, ex, ey, ez, s, L)
+    fr, cone, s, (ex, ey, ez) = cut_difference(Ra, Rb, dx, dy, dz, L)
     m, vx, vy, vz, inside, lower = gjk(P, ix, fr, cone, 0.0, 0.0, 0.0, acc, loose, W, I, lam)
     code = GJK_GAP
     if inside and lower > acc:
@@ -554,7 +550,8 @@ def pair_distance(P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, rtol, atol, eps, witnes
 def pair_distance_any_room(P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, rtol, atol, eps, witness, work):
     """:func:`pair_distance` in ``work`` (a block of :func:`workspace` with room ``EPA_ROOM[0]``), then,
     while EPA runs out of room, again with the larger rooms of :data:`EPA_ROOM` (allocated here, for the
-    rare pair: the one-pair path and the margin's fallback call this)."""
+    rare pair: the one-pair path and the margin's fallback call this). Axes that point the same way never
+    come back stopped: :func:`pair_distance` takes the depth of :mod:`.parallel` there at once."""
     args = (P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, rtol, atol, eps, witness)
     res = pair_distance(*args, work)
     for room in EPA_ROOM[1:]:

@@ -46,7 +46,7 @@ from .distance import (
     workspace,
 )
 from .jit import first_call, jit, twins
-from .minkowski import cone_box, support
+from .minkowski import cut_difference, support
 from .planar import point_polygon_distance
 
 #: The decision thresholds sit this fraction of the pair tolerance either side of the margin.
@@ -87,12 +87,8 @@ def pair_margin(P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, margin, rtol, atol, eps, 
     hi = margin + SLACK * tol
     lo = margin - SLACK * tol
     # D_L as pair_distance builds it.
-    fr = (Ra[0, 0], Ra[1, 0], Ra[2, 0], Ra[0, 1], Ra[1, 1], Ra[2, 1])
-    fr = fr + (Rb[0, 0], Rb[1, 0], Rb[2, 0], Rb[0, 1], Rb[1, 1], Rb[2, 1], dx, dy, dz)
-    s = 1.0 if Ra[0, 2] * Rb[0, 2] + Ra[1, 2] * Rb[1, 2] + Ra[2, 2] * Rb[2, 2] >= 0.0 else -1.0
-    ex, ey, ez = Rb[0, 2] - s * Ra[0, 2], Rb[1, 2] - s * Ra[1, 2], Rb[2, 2] - s * Ra[2, 2]
+    fr, cone, _, _ = cut_difference(Ra, Rb, dx, dy, dz, BOX * (ra + rb + centre_distance))
     dax, day, daz = np.float64(Ra[0, 2]), np.float64(Ra[1, 2]), np.float64(Ra[2, 2])
-    cone = cone_box(dax, day, daz, ex, ey, ez, s, BOX * (ra + rb + centre_distance))
     ux, uy, uz = _first_direction(dx, dy, dz, dax, day, daz, Rb[0, 2], Rb[1, 2], Rb[2, 2])
     x, y, z, ia, ib, kc = support(P, ix, fr, cone, ux, uy, uz)
     lower = -(ux * x + uy * y + uz * z) / math.sqrt(ux * ux + uy * uy + uz * uz)  # D_L lies beyond -u

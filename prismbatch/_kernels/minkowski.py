@@ -7,6 +7,8 @@ point of K costs two extreme-vertex searches (O(1) to O(log n),
 
 import math
 
+import numpy as np
+
 from .jit import jit
 from .planar import extreme_vertex
 
@@ -40,6 +42,26 @@ def cone_box(dax, day, daz, ex, ey, ez, s, L):
     if kap >= -rho:  # it leaves through s = L
         return sx, sy, sz, zx, zy, zz, 4.0, o, o, o, o, L, L, L, L, L - L * r, L, L * r, o, o, o, o
     return sx, sy, sz, zx, zy, zz, 5.0, o, o, o, o, L, L, L, L, L - L * r, L, -L, -L - L * r, -L / r, -L, o
+
+
+@jit(inline="always")
+def cut_difference(Ra, Rb, dx, dy, dz, L):
+    """D_L for :func:`support` from the poses: ``(fr, cone, s, (ex, ey, ez))``.
+
+    ``fr``: columns 0, 1 of R_a and R_b, then ``(dx, dy, dz)`` = c_b - c_a; ``cone``: :func:`cone_box`
+    with box half-width L; ``s``: the sign of d_a.d_b; ``e = d_b - s d_a``, formed exactly. All in
+    float64 whatever the pose arrays' dtype, so that the supports, and GJK and EPA on them, run in
+    double: with float32 products, the witness GJK stalled short of the foot point on some float32
+    pairs and left point_b up to 14 tol outside b.
+    """
+    f = np.float64
+    fr = (f(Ra[0, 0]), f(Ra[1, 0]), f(Ra[2, 0]), f(Ra[0, 1]), f(Ra[1, 1]), f(Ra[2, 1]))
+    fr = fr + (f(Rb[0, 0]), f(Rb[1, 0]), f(Rb[2, 0]), f(Rb[0, 1]), f(Rb[1, 1]), f(Rb[2, 1]), f(dx), f(dy), f(dz))
+    dax, day, daz = f(Ra[0, 2]), f(Ra[1, 2]), f(Ra[2, 2])
+    dbx, dby, dbz = f(Rb[0, 2]), f(Rb[1, 2]), f(Rb[2, 2])
+    s = 1.0 if dax * dbx + day * dby + daz * dbz >= 0.0 else -1.0
+    ex, ey, ez = dbx - s * dax, dby - s * day, dbz - s * daz  # exact (Sterbenz) for nearly (anti)parallel axes
+    return fr, cone_box(dax, day, daz, ex, ey, ez, s, L), s, (ex, ey, ez)
 
 
 @jit(inline="always")

@@ -585,6 +585,30 @@ def test_tolerance_is_collides():
         np.testing.assert_allclose(r.tol, tol, rtol=1e-12)
 
 
+@pytest.mark.parametrize("k", range(4))
+def test_float32_witnesses_on_their_bodies(monkeypatch, k):
+    """Recorded float32 pairs (tests/data/float32_witness.json) whose point_b lay 1.7 to 37 tol outside b
+    when the witness GJK ran on float32 products: the witnesses on their bodies, the depth against the
+    reference (two with the default rooms, two with EPA's room cut so that the separating-axis depth
+    takes over)."""
+    import json
+    from pathlib import Path
+
+    case = json.loads((Path(__file__).resolve().parents[1] / "data" / "float32_witness.json").read_text())["pairs"][k]
+    A, B = (np.array([[float.fromhex(x) for x in v] for v in case[key]]) for key in ("A", "B"))
+    pa, Ra, pb_, Rb = (np.array([float.fromhex(x) for x in case[key]]) for key in ("pa", "Ra", "pb", "Rb"))
+    Ra, Rb = Ra.reshape(3, 3), Rb.reshape(3, 3)
+    if case["room"] == "cut":
+        monkeypatch.setattr(importlib.import_module("prismbatch.distance"), "EPA_ROOM", (6,))
+    f32 = [x.astype(np.float32)[None].repeat(2, axis=0) for x in (pa, Ra, pb_, Rb)]  # a batch: the rooms apply
+    r = distance(pb.PrismSet([A, A]), pb.PrismSet([B, B]), *f32, witness=True, dtype=np.float32)
+    BA, BB = Body(A, pa, Ra), Body(B, pb_, Rb)
+    tol = r.tol[0]
+    assert r.solver[0] == (AXES_DEPTH if case["room"] == "cut" else 1) and r.status[0] == PENETRATING
+    assert abs(r.distance[0] - sat_separation(BA, BB)[0]) <= 10 * tol
+    assert max(abs(residual(BA, r.point_a[:1])[0]), abs(residual(BB, r.point_b[:1])[0])) <= tol
+
+
 def test_float32_agrees_within_its_tolerance():
     rng = np.random.default_rng(41)
     d = make_pairs(rng, 100, "free", "smallmed")
