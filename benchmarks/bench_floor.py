@@ -75,19 +75,25 @@ def _per_pair_ns(fn, n, repeats):
     return 1e9 * stats(timed_loops({"f": fn}, repeats)["f"])["median"] / n
 
 
-def kernel_rows(n_vertices, n_pairs, repeats, rng):
-    """Per-pair ns of each pose kind at one polygon size, and the floor on the same pairs."""
-    a, b = pb.Prism.regular(n_vertices, RADIUS_A), pb.Prism.regular(n_vertices, RADIUS_B)
-    col = pb.Collider(a, b)
+def pose_sets(col, n_pairs, rng):
+    """The pose sets of the rows, by name: facing poses settled early and those that reach GJK (by
+    ``col``'s case), the whole facing mix, and free poses; each C-contiguous."""
     facing = tuple(np.ascontiguousarray(x) for x in facing_poses(n_pairs, rng, radius=RADIUS_B))
     free = tuple(np.ascontiguousarray(x) for x in free_poses(n_pairs, rng, radius=RADIUS_B))
     case = col.collide(*facing, parallel=False).case
-    sets = {
+    return {
         "early exits (cases 1, 5)": _subset(facing, (case == 1) | (case == 5)),
         "GJK pairs (case 6)": _subset(facing, case == 6),
         "facing mix": facing,
         "free poses": free,
     }
+
+
+def kernel_rows(n_vertices, n_pairs, repeats, rng):
+    """Per-pair ns of each pose kind at one polygon size, and the floor on the same pairs."""
+    a, b = pb.Prism.regular(n_vertices, RADIUS_A), pb.Prism.regular(n_vertices, RADIUS_B)
+    col = pb.Collider(a, b)
+    sets = pose_sets(col, n_pairs, rng)
     rows = []
     for name, poses in sets.items():
         n = len(poses[0])
@@ -118,7 +124,11 @@ def latency_rows(repeats):
         "Collider.collide, one pair": lambda: col.collide(*one),
         "pb.collide, one pair": lambda: pb.collide(a, b, *one),
     }
-    loops = 2000
+    return {k: 1e6 * v for k, v in seconds_per_call(calls, repeats).items()}
+
+
+def seconds_per_call(calls, repeats, loops=2000):
+    """Median seconds per call of each of ``calls`` (name -> function of no arguments), ``loops`` calls a pass."""
 
     def many(f):
         def run():
@@ -128,7 +138,7 @@ def latency_rows(repeats):
         return run
 
     times = timed_loops({k: many(f) for k, f in calls.items()}, repeats)
-    return {k: 1e6 * stats(v)["median"] / loops for k, v in times.items()}
+    return {k: stats(v)["median"] / loops for k, v in times.items()}
 
 
 def bulk_rows(n_pairs, repeats, rng):
@@ -244,14 +254,28 @@ def markdown(res):
     return "\n".join(L)
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+def parse_args(doc, stem, argv):
+    """The options of this script and of ``profile_collide.py``: ``(args, repeats)``."""
+    ap = argparse.ArgumentParser(description=doc.split("\n")[0])
     ap.add_argument("--quick", action="store_true", help="small sets and few repeats (a smoke run)")
     ap.add_argument("--repeats", type=int, default=None, help="timed passes per figure (default 7, quick 3)")
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--out", type=Path, default=None, help="write floor.md and floor.json here")
+    ap.add_argument("--out", type=Path, default=None, help=f"write {stem}.md and {stem}.json here")
     args = ap.parse_args(argv)
-    rep = args.repeats or (3 if args.quick else 7)
+    return args, args.repeats or (3 if args.quick else 7)
+
+
+def report(text, res, stem, args, repeats):
+    """Print the Markdown ``text``; with ``--out``, write it and the figures ``res`` with the run's metadata."""
+    print(text)
+    if args.out is not None:
+        args.out.mkdir(parents=True, exist_ok=True)
+        (args.out / f"{stem}.md").write_text(text + "\n")
+        write_json(args.out / f"{stem}.json", dict(res, meta=run_metadata(repeats=repeats, seed=args.seed)))
+
+
+def main(argv=None):
+    args, rep = parse_args(__doc__, "floor", argv)
     rng = np.random.default_rng(args.seed)
     if args.quick:
         runs = [(36, 20_000), (3600, 20_000)]
@@ -270,12 +294,7 @@ def main(argv=None):
     print("cold compile ...", file=sys.stderr)
     res["compile"] = cold_compile()
     res["prismset"] = prismset_build(10_000 if args.quick else 100_000, rng)
-    text = markdown(res)
-    print(text)
-    if args.out:
-        args.out.mkdir(parents=True, exist_ok=True)
-        (args.out / "floor.md").write_text(text + "\n")
-        write_json(args.out / "floor.json", dict(res, meta=run_metadata(repeats=rep, seed=args.seed)))
+    report(markdown(res), res, "floor", args, rep)
     return 0
 
 

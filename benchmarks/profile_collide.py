@@ -39,7 +39,6 @@ One thread, medians over repeats, all figures from one run:
 
 from __future__ import annotations
 
-import argparse
 import math
 import sys
 from pathlib import Path
@@ -60,13 +59,22 @@ from prismbatch._kernels.planar import extreme_vertex, point_polygon_distance
 from prismbatch._kernels.projection import surely_above, surely_above_by_radius
 from prismbatch.collide import PairResult
 from prismbatch.config import SUPPORTED_RANGE
-from prismbatch.lab.report import fmt, run_metadata, write_json
+from prismbatch.lab.report import fmt
 from prismbatch.lab.timing import stats, threads, timed_loops
 from prismbatch.poses import ortho_tolerance
-from prismbatch.sampling import facing_poses, free_poses
+from prismbatch.sampling import facing_poses
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_floor import RADIUS_A, RADIUS_B, _floor_loop, _subset, _trivial  # noqa: E402  (the same floor)
+from bench_floor import (  # noqa: E402  (the same floor, sets and options)
+    RADIUS_A,
+    RADIUS_B,
+    _floor_loop,
+    _trivial,
+    parse_args,
+    pose_sets,
+    report,
+    seconds_per_call,
+)
 
 STAGES = (
     "floor",
@@ -122,10 +130,6 @@ def _staged(stage, A, B, pos_a, rot_a, pos_b, rot_b, rtol, eps, out):
         out[i] = inside or imin + r02 + r12 > 0.0
 
 
-def _per_pair_ns(fn, n, repeats):
-    return 1e9 * stats(timed_loops({"f": fn}, repeats)["f"])["median"] / n
-
-
 def stage_rows(n_vertices, n_pairs, repeats, rng):
     """Per-pair ns of every stage on each pose kind at one polygon size."""
     a, b = pb.Prism.regular(n_vertices, RADIUS_A), pb.Prism.regular(n_vertices, RADIUS_B)
@@ -134,15 +138,7 @@ def stage_rows(n_vertices, n_pairs, repeats, rng):
     A = (ka.vx, ka.vy, ka.vertex_angle, ka.inv_edge_len, ka.offsets, ka.radius, ka.centre)
     B = (kb.vx, kb.vy, kb.edge_angle, kb.edge_table, kb.offsets, kb.radius, kb.centre)
     rtol, eps = col.rtol, float(np.finfo(np.float64).eps)
-    facing = tuple(np.ascontiguousarray(x) for x in facing_poses(n_pairs, rng, radius=RADIUS_B))
-    free = tuple(np.ascontiguousarray(x) for x in free_poses(n_pairs, rng, radius=RADIUS_B))
-    case = col.collide(*facing, parallel=False).case
-    sets = {
-        "early exits (cases 1, 5)": _subset(facing, (case == 1) | (case == 5)),
-        "GJK pairs (case 6)": _subset(facing, case == 6),
-        "facing mix": facing,
-        "free poses": free,
-    }
+    sets = pose_sets(col, n_pairs, rng)
     rows = []
     for name, poses in sets.items():
         n = len(poses[0])
@@ -206,17 +202,7 @@ def latency_steps(repeats):
         ),
         "Collider.collide_pair": lambda: col.collide_pair(*one),
     }
-    loops = 2000
-
-    def many(f):
-        def run():
-            for _ in range(loops):
-                f()
-
-        return run
-
-    times = timed_loops({k: many(f) for k, f in calls.items()}, repeats)
-    return {k: 1e9 * stats(v)["median"] / loops for k, v in times.items()}
+    return {k: 1e9 * v for k, v in seconds_per_call(calls, repeats).items()}
 
 
 def markdown(res):
@@ -238,13 +224,7 @@ def markdown(res):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--quick", action="store_true", help="small sets and few repeats (a smoke run)")
-    ap.add_argument("--repeats", type=int, default=None, help="timed passes per figure (default 7, quick 3)")
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--out", type=Path, default=None, help="write profile.md and profile.json here")
-    args = ap.parse_args(argv)
-    repeats = args.repeats or (3 if args.quick else 7)
+    args, repeats = parse_args(__doc__, "profile", argv)
     n_pairs = 20_000 if args.quick else 200_000
     rng = np.random.default_rng(args.seed)
     with threads(1):
@@ -252,12 +232,7 @@ def main(argv=None):
         latency = latency_steps(repeats)
     gjk = [gjk_iterations(nv, 50 if args.quick else 500, rng) for nv in (36, 3600)]
     res = {"stages": stages, "gjk": gjk, "latency": latency, "pairs": n_pairs}
-    text = markdown(res)
-    print(text)
-    if args.out is not None:
-        args.out.mkdir(parents=True, exist_ok=True)
-        (args.out / "profile.md").write_text(text + "\n")
-        write_json(args.out / "profile.json", dict(res, meta=run_metadata(repeats=repeats, seed=args.seed)))
+    report(markdown(res), res, "profile", args, repeats)
     return 0
 
 
