@@ -57,8 +57,8 @@ SOLVERS = {
     "the gap reported is an upper bound, attained by the witness points",
     PLANAR_DEPTH: "exactly parallel axes pointing the same way, where EPA stopped early: the depth of the end faces' "
     "overlap in the plane (exact)",
-    AXES_DEPTH: "other axes pointing the same way (nearly parallel), where EPA stopped early: the depth by the "
-    "separating-axis theorem over the Minkowski difference's candidate facet normals (exact to rounding)",
+    AXES_DEPTH: "other axes pointing the same way, where EPA stopped early (seen on nearly parallel ones): the depth "
+    "by the separating-axis theorem over the Minkowski difference's candidate facet normals (exact to rounding)",
 }
 
 

@@ -52,7 +52,7 @@ def cut_difference(Ra, Rb, dx, dy, dz, L):
     with box half-width L; ``s``: the sign of d_a.d_b; ``e = d_b - s d_a``, formed exactly. All in
     float64 whatever the pose arrays' dtype, so that the supports, and GJK and EPA on them, run in
     double: with float32 products, the witness GJK stalled short of the foot point on some float32
-    pairs and left point_b up to 14 tol outside b.
+    pairs and left point_b 1.7 to 37 tol outside b.
     """
     f = np.float64
     fr = (f(Ra[0, 0]), f(Ra[1, 0]), f(Ra[2, 0]), f(Ra[0, 1]), f(Ra[1, 1]), f(Ra[2, 1]))
