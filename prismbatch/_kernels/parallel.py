@@ -167,6 +167,7 @@ def tilted_overlap(P, ix, Ra, Rb, dx, dy, dz, ex, ey, ez):
     for k in range(na):
         k1 = k + 1 if k + 1 < na else 0
         gx, gy = avx[sa + k1] - avx[sa + k], avy[sa + k1] - avy[sa + k]
+        gn = math.sqrt(gx * gx + gy * gy)
         best = _better(P, ix, rel, fx, fy, fz, gy, -gx, 0.0, ACROSS, best)  # a's side normal
         cx, cy, cz = gy * bz, -gx * bz, gx * fy - gy * fx  # a's edge x d_b
         best = _better(P, ix, rel, fx, fy, fz, cx, cy, cz, ACROSS, best)
@@ -184,7 +185,7 @@ def tilted_overlap(P, ix, Ra, Rb, dx, dy, dz, ex, ey, ez):
                 hx, hy = bvx[sb + j1] - bvx[sb + j], bvy[sb + j1] - bvy[sb + j]
                 qx, qy, qz = m00 * hx + m01 * hy, m10 * hx + m11 * hy, r20 * hx + r21 * hy  # in a's frame
                 # q's in-plane normal (qy, -qx) against -n_a = (-gy, gx): opposite within the window
-                qn, gn = math.sqrt(qx * qx + qy * qy), math.sqrt(gx * gx + gy * gy)
+                qn = math.sqrt(qx * qx + qy * qy)
                 if not (qn > 0.0 and gn > 0.0):
                     j += step
                     continue

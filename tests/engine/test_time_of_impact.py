@@ -559,7 +559,7 @@ def test_pairs_out_of_the_batch_room_are_rerun(monkeypatch, parallel):
     got = col.time_of_impact(pa, ra, pbb, rb, v, w, **kw)
     assert rerun and rerun[0] > 50 and (want.time == 0).sum() > 50
     same_way = np.einsum("ij,ij->i", ra[:, :, 2], rb[:, :, 2]) > 0
-    tol = pair_scale_tolerance(pb.Prism.regular(36, 2.0), pb.Prism.regular(37, 2.5), pa, ra, pbb, rb)[1]
+    tol = pair_scale_tolerance(col.shape_a, col.shape_b, pa, ra, pbb, rb)[1]
     for name, value in want.columns().items():
         np.testing.assert_array_equal(got.columns()[name][~same_way], value[~same_way])
         if name.startswith(("distance", "contact")):  # NaN where there is none, in both
