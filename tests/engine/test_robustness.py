@@ -133,11 +133,13 @@ def test_float32_positions_beyond_its_range_raise(pos):
     ):
         pb.collide(sq, sq, [0, 0, 0], down, np.array([pos, pos]), np.eye(3), dtype=np.float32)
     # (1e39 is inf once the caller has rounded it to float32.)
+    with np.errstate(over="ignore"):
+        pos32 = np.array(pos, np.float32)
     with pytest.raises(
         ValueError, match=r"pos_b (has a coordinate .* outside the supported range \|x\| <= 1e\+12|contains non-finite)"
     ):
         pb.Collider(sq, sq, dtype=np.float32).collide_pair(
-            np.zeros(3, np.float32), down.astype(np.float32), np.array(pos, np.float32), np.eye(3, dtype=np.float32)
+            np.zeros(3, np.float32), down.astype(np.float32), pos32, np.eye(3, dtype=np.float32)
         )
     assert pb.collide(sq, sq, [0, 0, 0], down, [1e20, 0, -1], np.eye(3)).hit.tolist() == [False]  # float64: fine
 
