@@ -31,6 +31,7 @@ import numpy as np
 from numba import prange
 
 from .batch import centres_world, pair_tolerance, unpack
+from .gjk3d import gjk
 from .jit import jit, twins
 from .minkowski import cut_difference, point_a, support
 from .parallel import parallel_overlap, tilted_overlap
@@ -45,7 +46,6 @@ ACC_EPS = 64.0
 #: Where rounding stops GJK short of that, a gap bracketed to within this fraction of the tolerance is kept.
 LOOSE_FRACTION = 0.1
 EPS64 = float(np.finfo(np.float64).eps)
-GJK_MAX_ITER = 128
 #: EPA's room in vertices: tried in turn while it runs out (128 hold 99.99 % of 3600-gon pairs; 100,000-gons
 #: need up to ~600); it has 8 faces per vertex. The batch loops hold one workspace of the first per block
 #: and send the rare pair that runs out of it to a second pass with the last (pairs whose axes point the same
@@ -64,199 +64,7 @@ SEEN_SLACK = 1e-2
 GJK_GAP, EPA_DEPTH, EPA_STOPPED, FLAT, GJK_STALLED, PLANAR_DEPTH, AXES_DEPTH = 0, 1, 2, 3, 4, 5, 6
 
 
-# --- closest point of a simplex to the origin (Ericson's Voronoi-region tests) ------------------------
-
-
-@jit(inline="always")
-def _foot(a, e):
-    """Foot of the perpendicular from the origin on the line a + t e, as e x (a x e) / |e|^2:
-    exact to rounding of the result, where a + t e loses eps |a| when the foot is near the origin."""
-    f = cross(e, cross(a, e))
-    ee = dot(e, e)
-    return f[0] / ee, f[1] / ee, f[2] / ee
-
-
-@jit
-def _triangle(W, i, j, k):
-    """Closest point of triangle (W[i], W[j], W[k]) to the origin and its three weights (Ericson)."""
-    a, b, c = row(W, i), row(W, j), row(W, k)
-    ab, ac = sub(b, a), sub(c, a)
-    d1, d2 = -dot(ab, a), -dot(ac, a)
-    if d1 <= 0.0 and d2 <= 0.0:
-        return a + (1.0, 0.0, 0.0)
-    d3, d4 = -dot(ab, b), -dot(ac, b)
-    if d3 >= 0.0 and d4 <= d3:
-        return b + (0.0, 1.0, 0.0)
-    vc = d1 * d4 - d3 * d2
-    if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
-        t = d1 / (d1 - d3)
-        return _foot(a, ab) + (1.0 - t, t, 0.0)
-    d5, d6 = -dot(ab, c), -dot(ac, c)
-    if d6 >= 0.0 and d5 <= d6:
-        return c + (0.0, 0.0, 1.0)
-    vb = d5 * d2 - d1 * d6
-    if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
-        t = d2 / (d2 - d6)
-        return _foot(a, ac) + (1.0 - t, 0.0, t)
-    va = d3 * d6 - d5 * d4
-    if va <= 0.0 and d4 - d3 >= 0.0 and d5 - d6 >= 0.0:
-        t = (d4 - d3) / ((d4 - d3) + (d5 - d6))
-        return _foot(b, sub(c, b)) + (0.0, 1.0 - t, t)
-    n = cross(ab, ac)
-    nn = dot(n, n)
-    if not (va + vb + vc > 0.0 and nn > 0.0):  # degenerate (collinear): its nearest vertex
-        da, db, dc = dot(a, a), dot(b, b), dot(c, c)
-        if da <= min(db, dc):
-            return a + (1.0, 0.0, 0.0)
-        return b + (0.0, 1.0, 0.0) if db <= dc else c + (0.0, 0.0, 1.0)
-    h = dot(n, a) / nn  # along the normal: exact to rounding of the result
-    p = (h * n[0], h * n[1], h * n[2])
-    # Weights from the areas the foot cuts, differences taken at the foot: on a sliver (one far vertex)
-    # the dot products above lose them, and the weights must reproduce the foot for the witnesses.
-    wa = dot(n, cross(sub(b, p), sub(c, p)))
-    wb = dot(n, cross(sub(c, p), sub(a, p)))
-    wc = dot(n, cross(sub(a, p), sub(b, p)))
-    ws = wa + wb + wc
-    if not ws > 0.0:
-        den = va + vb + vc
-        return p + (va / den, vb / den, vc / den)
-    return p + (max(wa, 0.0) / ws, max(wb, 0.0) / ws, max(wc, 0.0) / ws)
-
-
-_FACES = ((0, 1, 2, 3), (0, 3, 1, 2), (0, 2, 3, 1), (1, 3, 2, 0))  # three vertices of a face, then the fourth
-
-
-@jit(inline="always")
-def _compact(W, I, lam, m):
-    """Keep the rows of W, I, lam with positive weight (in place, in order); their number."""
-    k = 0
-    for j in range(m):
-        if lam[j] > 0.0:
-            for c in range(3):  # element by element: a row copy may allocate (no NRT in margin's loop)
-                W[k, c], I[k, c] = W[j, c], I[j, c]
-            lam[k] = lam[j]
-            k += 1
-    return k
-
-
-@jit(inline="always")
-def closest(W, I, lam, m):
-    """Closest point of conv(W[:m]) to the origin; keeps only the vertices that carry it.
-
-    Returns (m', vx, vy, vz, inside, face): ``lam[:m']`` are the weights, W and I
-    are compacted in place. ``inside``: the origin lies in the tetrahedron
-    (m = 4); W, I are then left whole, v and ``lam`` describe the nearest point
-    of its boundary (stable weights for a point on the boundary, which Cramer's
-    rule on a sliver is not), and ``face`` is its distance (else 0).
-    """
-    for j in range(4):
-        lam[j] = 0.0
-    if m == 1:
-        p = row(W, 0)
-        lam[0] = 1.0
-    elif m == 2:
-        a, e = row(W, 0), diff(W, 1, 0)
-        ee = dot(e, e)
-        t = min(max(-dot(a, e) / ee, 0.0), 1.0) if ee > 0.0 else 0.0
-        lam[0], lam[1] = 1.0 - t, t
-        p = row(W, 1) if t == 1.0 else (a if t == 0.0 else _foot(a, e))
-    elif m == 3:
-        px, py, pz, lam[0], lam[1], lam[2] = _triangle(W, 0, 1, 2)
-        p = (px, py, pz)
-    else:
-        best = math.inf
-        inside = True
-        p = (0.0, 0.0, 0.0)
-        for sweep in range(2):  # the faces the origin is beyond; if none, it is inside: all faces
-            for f in range(4):
-                i, j, k, l = _FACES[f]
-                n = cross(diff(W, j, i), diff(W, k, i))
-                if sweep == 1 or -dot(n, row(W, i)) * dot(n, diff(W, l, i)) <= 0.0:
-                    inside = sweep == 1
-                    qx, qy, qz, li, lj, lk = _triangle(W, i, j, k)
-                    if qx * qx + qy * qy + qz * qz < best:
-                        best = qx * qx + qy * qy + qz * qz
-                        p = (qx, qy, qz)
-                        for c in range(4):
-                            lam[c] = 0.0
-                        lam[i], lam[j], lam[k] = li, lj, lk
-            if best < math.inf:
-                break
-        if inside:
-            return 4, p[0], p[1], p[2], True, math.sqrt(best)
-    return _compact(W, I, lam, m), p[0], p[1], p[2], False, 0.0
-
-
-# --- GJK and EPA ---------------------------------------------------------------------------------
-
-
-@jit(inline="always")
-def _copy_simplex(W, I, lam, src, dst, m):
-    """Rows ``src .. src + m - 1`` of the simplex to ``dst ..`` (element by element: a slice copy
-    would need Numba's reference counting, which the batch loop runs without)."""
-    for j in range(m):
-        for c in range(3):
-            W[dst + j, c] = W[src + j, c]
-            I[dst + j, c] = I[src + j, c]
-        lam[dst + j] = lam[src + j]
-
-
-@jit
-def gjk(P, ix, fr, cone, ox, oy, oz, acc, loose, W, I, lam):
-    """Closest point of D_L to o: GJK on the support function.
-
-    Returns (m, vx, vy, vz, inside, lower): v = closest point - o, ``lower`` the best lower
-    bound on the distance (a support plane), the simplex in
-    ``W[:m]`` (points minus o), ``I[:m]`` (pre-images ia, ib, kc) and
-    ``lam[:m]`` (weights). ``inside``: o lies in D_L or within ``acc`` of it, or
-    GJK stopped (rounding, or its iteration cap) without showing a gap to within
-    ``loose``; the distance is then not resolved and EPA takes over; the simplex is then a
-    tetrahedron around o, or, when o is within ``acc`` of the simplex's boundary,
-    the simplex of the nearest boundary point (v is that point - o). Otherwise
-    |v| is the distance, to within ``acc`` (or, where rounding stopped GJK, to
-    within ``loose``: rounding on the slivers of 100,000-gons leaves about 1e-10 |v|).
-    """
-    ux, uy, uz = fr[12], fr[13], fr[14]
-    if ux == 0.0 and uy == 0.0 and uz == 0.0:
-        ux = 1.0
-    x, y, z, ia, ib, kc = support(P, ix, fr, cone, ux, uy, uz)
-    W[0, 0], W[0, 1], W[0, 2] = x - ox, y - oy, z - oz
-    I[0, 0], I[0, 1], I[0, 2] = ia, ib, kc
-    lam[0] = 1.0
-    m = 1
-    vx, vy, vz = W[0, 0], W[0, 1], W[0, 2]
-    lower = 0.0
-    for _ in range(GJK_MAX_ITER):
-        vn = math.sqrt(vx * vx + vy * vy + vz * vz)
-        if vn <= acc:
-            return m, vx, vy, vz, True, lower
-        x, y, z, ia, ib, kc = support(P, ix, fr, cone, -vx, -vy, -vz)
-        wx, wy, wz = x - ox, y - oy, z - oz
-        lower = max(lower, (vx * wx + vy * wy + vz * wz) / vn)
-        if vn - lower <= acc:
-            return m, vx, vy, vz, False, lower
-        for j in range(m):
-            if I[j, 0] == ia and I[j, 1] == ib and I[j, 2] == kc:  # no progress: converged to rounding
-                return m, vx, vy, vz, lower <= acc or vn - lower > loose, lower
-        _copy_simplex(W, I, lam, 0, 4, m)  # kept: on slivers rounding can misjudge the faces and lose much ground
-        m0, vx0, vy0, vz0 = m, vx, vy, vz
-        vv0 = vx * vx + vy * vy + vz * vz
-        W[m, 0], W[m, 1], W[m, 2] = wx, wy, wz
-        I[m, 0], I[m, 1], I[m, 2] = ia, ib, kc
-        m, vx, vy, vz, inside, face = closest(W, I, lam, m + 1)
-        # Lost ground, or "inside" a tetrahedron although a support plane puts o at least lower > acc
-        # from D_L (rounding on a sliver: three nearly equal points and a far one, as on identical
-        # rotations of 3600-gons, where taking it gave a distance of 0 and a NaN normal): back to the
-        # last simplex, whose v is a point of D_L.
-        if (inside and lower > acc) or (not inside and vx * vx + vy * vy + vz * vz > 2.0 * vv0):
-            m = m0
-            _copy_simplex(W, I, lam, 4, 0, m)
-            return m, vx0, vy0, vz0, lower <= acc or vn - lower > loose, lower  # a gap if shown, else EPA decides
-        if inside:
-            if face > acc:
-                return 4, 0.0, 0.0, 0.0, True, lower
-            return _compact(W, I, lam, 4), vx, vy, vz, True, lower  # o on the boundary (the witness pass)
-    return m, vx, vy, vz, lower <= acc or vn - lower > loose, lower
+# --- EPA ------------------------------------------------------------------------------------------
 
 
 @jit

@@ -35,16 +35,8 @@ import numpy as np
 from numba import prange
 
 from .batch import centres_world, pair_tolerance, unpack, use_parallel
-from .distance import (
-    BOX,
-    EPA_ROOM,
-    GJK_MAX_ITER,
-    block_of,
-    closest,
-    pair_distance_any_room,
-    pair_index,
-    workspace,
-)
+from .distance import BOX, EPA_ROOM, block_of, pair_distance_any_room, pair_index, workspace
+from .gjk3d import GJK_MAX_ITER, closest
 from .jit import first_call, jit, twins
 from .minkowski import cut_difference, support
 from .planar import point_polygon_distance
@@ -121,7 +113,7 @@ def pair_margin(P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, margin, rtol, atol, eps, 
         # Both bounds hold for any simplex, so a step that rounding makes lose ground is harmless.
         m, vx, vy, vz, inside, _ = closest(W, I, lam, m + 1)
         if inside:  # o in a tetrahedron of D_L: a hit, unless a support plane already put o outside D_L
-            # (rounding on a sliver, see distance.gjk); the full signed distance then decides
+            # (rounding on a sliver, see gjk3d.gjk); the full signed distance then decides
             return (True, DECIDED) if lower <= 0.0 else (False, UNDECIDED)
     return False, UNDECIDED
 
