@@ -39,8 +39,10 @@ def sliver_far_from_origin():
 
 
 def _ccw(xy):
-    x, y = xy[:, 0], xy[:, 1]
-    area2 = np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y)
+    """Counter-clockwise by the signed area about the mean: the shoelace sum of coordinates far from
+    the origin can round to the wrong sign on slivers."""
+    v = xy - xy.mean(axis=0)
+    area2 = np.sum(v[:, 0] * np.roll(v[:, 1], -1) - np.roll(v[:, 0], -1) * v[:, 1])
     return xy if area2 > 0 else xy[::-1].copy()
 
 
