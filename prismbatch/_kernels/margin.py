@@ -13,8 +13,9 @@ of m that d lies on, so GJK stops as soon as
 * the lower bound exceeds m - tol / 2: a miss (d > m - tol / 2);
 
 one of which holds once the bounds are tol apart: GJK runs to tol, not to the
-1e-3 tol of the distance, and a pair far from the margin stops after one or two
-supports (the first one, towards b's centre turned into a direction where D's
+1e-3 tol of the distance. A pair whose end planes keep the bodies apart (neither
+axis pointing over the other's end face) stops before GJK; a pair far from the
+margin stops after one or two supports (the first one, towards b's centre turned into a direction where D's
 support is finite, is already a plane); where it is not, b's centre inside a
 settles a deep overlap without GJK. A pair whose GJK stops without settling
 it (rounding on the slivers of very fine polygons, or the iteration cap; not
@@ -43,6 +44,8 @@ from .planar import point_polygon_distance
 
 #: The decision thresholds sit this fraction of the pair tolerance either side of the margin.
 SLACK = 0.5
+#: A miss by the end planes alone (:func:`pair_margin`) must clear the margin by this fraction of the pair's size.
+FAR_SLACK = 1e-4
 #: Codes of :func:`pair_margin`: settled by GJK's bounds, or left to the full signed distance.
 DECIDED, UNDECIDED = 0, 1
 #: Pairs per block of the batch loop; each block has its own GJK workspace.
@@ -78,16 +81,26 @@ def pair_margin(P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, margin, rtol, atol, eps, 
     tol = pair_tolerance(ra, rb, centre_distance, ox, oy, oz, dx, dy, dz, ca[0], ca[1], cb[0], cb[1], rtol, atol, eps)
     hi = margin + SLACK * tol
     lo = margin - SLACK * tol
+    dax, day, daz = np.float64(Ra[0, 2]), np.float64(Ra[1, 2]), np.float64(Ra[2, 2])
+    dbx, dby, dbz = np.float64(Rb[0, 2]), np.float64(Rb[1, 2]), np.float64(Rb[2, 2])
+    pz = dax * dx + day * dy + daz * dz  # b's centre along a's axis (a lies at pz >= 0)
+    if dax * dbx + day * dby + daz * dbz <= 0.0:
+        # Neither body reaches over the other's end plane along its axis, so each end plane bounds the
+        # gap: b lies below pz + rb along d_a, a below ra - d_b.(c_b - c_a) along d_b. Far pairs (the
+        # paper's facing scene) stop here, before the difference is built. These bounds take the axes
+        # as unit and across the end faces, true only to the rotations' orthonormality (1e-5 in
+        # float32), so they must clear the margin by FAR_SLACK of the pair's size.
+        far = lo + FAR_SLACK * (ra + rb + centre_distance)
+        if -(pz + rb) > far or (dbx * dx + dby * dy + dbz * dz) - ra > far:
+            return False, DECIDED
     # D_L as pair_distance builds it.
     fr, cone, _, _ = cut_difference(Ra, Rb, dx, dy, dz, BOX * (ra + rb + centre_distance))
-    dax, day, daz = np.float64(Ra[0, 2]), np.float64(Ra[1, 2]), np.float64(Ra[2, 2])
-    ux, uy, uz = _first_direction(dx, dy, dz, dax, day, daz, Rb[0, 2], Rb[1, 2], Rb[2, 2])
+    ux, uy, uz = _first_direction(dx, dy, dz, dax, day, daz, dbx, dby, dbz)
     x, y, z, ia, ib, kc = support(P, ix, fr, cone, ux, uy, uz)
     lower = -(ux * x + uy * y + uz * z) / math.sqrt(ux * ux + uy * uy + uz * uz)  # D_L lies beyond -u
     if lower > lo:
         return False, DECIDED
-    pz = Ra[0, 2] * dx + Ra[1, 2] * dy + Ra[2, 2] * dz  # b's centre in a's frame: inside a is an overlap
-    if pz >= 0.0:
+    if pz >= 0.0:  # b's centre inside a is an overlap
         px = Ra[0, 0] * dx + Ra[1, 0] * dy + Ra[2, 0] * dz
         py = Ra[0, 1] * dx + Ra[1, 1] * dy + Ra[2, 1] * dz
         if point_polygon_distance(P[0], P[1], avang, ainv, ix[0], ix[1], px, py) >= 0.0:

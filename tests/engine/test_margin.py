@@ -29,6 +29,7 @@ from helpers import (
     polygon_centre,
     polygon_radius,
     random_polygon,
+    regular_polygon,
     sample_vertex_count,
     separating_directions,
     vertical_pairs,
@@ -135,6 +136,55 @@ def test_nearly_parallel_axes(relation, tilt):
         turn = Rotation.from_rotvec(tilt * np.column_stack([np.cos(ang), np.sin(ang), np.zeros(len(d))]))
         d.rot_b = turn.as_matrix() @ d.rot_b
     check_family(f"{relation}, tilt {tilt:g}", d)
+
+
+def _lying_on_their_side(rng, n):
+    """a's axis down (a below z = 0); b's axis level or tilted up by up to 0.3 rad, its vertex (rb, 0)
+    straight below its centre, over a's end face: the end planes bound the gap (the far-pair exit of
+    the margin query), tightly when b's axis is level."""
+    rows = []
+    for k in range(n):
+        A = regular_polygon(int(rng.integers(6, 41)), 2.0)
+        rb = rng.uniform(0.5, 2.0)
+        B = regular_polygon(int(rng.integers(3, 41)), rb)
+        phi, beta = rng.uniform(0, 2 * np.pi), (0.0 if k % 2 else rng.uniform(0, 0.3))
+        d_b = np.array([np.cos(phi) * np.cos(beta), np.sin(phi) * np.cos(beta), np.sin(beta)])
+        r1 = np.array([np.cos(phi) * np.sin(beta), np.sin(phi) * np.sin(beta), -np.cos(beta)])  # down, across d_b
+        R_b = np.column_stack([r1, np.cross(d_b, r1), d_b])
+        centre = np.array([*rng.uniform(-0.3, 0.3, 2), rb * np.cos(beta) + rng.uniform(0.1, 1.0)])
+        rows.append((A, B, np.zeros(3), np.diag([1.0, -1.0, -1.0]), centre, R_b))
+    return pairs_from_rows(rows)
+
+
+def test_bodies_kept_apart_by_their_end_planes():
+    """b moved up or down to m + 0.1 .. 1e3 tol and to m + 1e-5 .. 1e-3 of the size, where the margin
+    query's end-plane exit is tight or must leave the pair to GJK."""
+    rng = np.random.default_rng(53)
+    d = _lying_on_their_side(rng, 400)
+    assert np.allclose(np.einsum("nij,nik->njk", d.rot_b, d.rot_b), np.eye(3), atol=1e-12)
+    sa, sb = sets(d)
+    w = distance(sa, sb, *d.args(), witness=True)
+    assert (w.distance > 0).all()
+    S = float(np.median(d.scale))
+    for frac in FRACTIONS[1:]:
+        m = frac * S
+        step = rng.choice([-1.0, 1.0], len(d)) * 10 ** rng.uniform(-1, 3, len(d)) * w.tol
+        step[::3] = 10 ** rng.uniform(-5, -3, step[::3].size) * S  # just past the exit's slack, or on it
+        pos_b = d.pos_b.copy()
+        pos_b[:, 2] += m + step - w.distance  # the gap is vertical: b's lowest edge over a's end face
+        wrong, clear, hit = disagreements(d, m, pos_b)
+        assert wrong.size == 0, f"end planes, margin {frac:g} S: wrong on pairs {wrong[:5]}"
+        assert clear.sum() > 300 and 0.2 < hit[clear].mean() < 0.8
+        ref = []
+        for k in range(0, len(d), 8):
+            A, B = Body(d.polys_a[k], d.pos_a[k], d.rot_a[k]), Body(d.polys_b[k], pos_b[k], d.rot_b[k])
+            sep, _ = sat_separation(A, B)
+            ref.append(sep if sep <= 0 else gap_features(A, B))
+        ref = np.array(ref)
+        sub = hit[::8]
+        tol = w.tol[::8]
+        clear = np.abs(ref - m) > 1.01 * tol
+        assert np.array_equal(sub[clear], ref[clear] <= m), f"end planes against the reference, margin {frac:g} S"
 
 
 def test_against_the_independent_reference():
