@@ -15,8 +15,8 @@ of m that d lies on, so GJK stops as soon as
 one of which holds once the bounds are tol apart: GJK runs to tol, not to the
 1e-3 tol of the distance. A pair whose end planes keep the bodies apart (neither
 axis pointing over the other's end face) stops before GJK; a pair far from the
-margin stops after one or two supports (the first one, towards b's centre turned into a direction where D's
-support is finite, is already a plane); where it is not, b's centre inside a
+margin stops after one or two supports (the first one, towards b's centre turned
+into a direction where D's support is finite, is already a plane); where it is not, b's centre inside a
 settles a deep overlap without GJK. A pair whose GJK stops without settling
 it (rounding on the slivers of very fine polygons, or the iteration cap; not
 seen on 3600- and 100,000-gons placed within 0.1 to 1e3 tol of the margin) is
