@@ -19,7 +19,7 @@ import prismbatch as pb
 from prismbatch._kernels import margin as margin_kernels
 from prismbatch.collide import DEFAULT_RTOL
 from prismbatch.distance import distance
-from prismbatch.lab.distance_ref import Body, gap_features, sat_separation
+from prismbatch.lab.distance_ref import signed_distance_reference
 
 from helpers import (
     bisect_to_contact,
@@ -37,6 +37,16 @@ from helpers import (
 
 #: Margins as fractions of the batch's median scale S: zero, about the tolerance (1e-9 S), and up to S.
 FRACTIONS = (0.0, 1e-9, 1e-6, 1e-3, 0.1, 1.0)
+
+
+def reference_distances(d, pos_b, rows):
+    """The independent reference's signed distance (SAT depth, else the feature gap) of pairs ``rows``."""
+    return np.array(
+        [
+            signed_distance_reference(d.polys_a[k], d.pos_a[k], d.rot_a[k], d.polys_b[k], pos_b[k], d.rot_b[k])[0]
+            for k in rows
+        ]
+    )
 
 
 def sets(d):
@@ -175,12 +185,7 @@ def test_bodies_kept_apart_by_their_end_planes():
         wrong, clear, hit = disagreements(d, m, pos_b)
         assert wrong.size == 0, f"end planes, margin {frac:g} S: wrong on pairs {wrong[:5]}"
         assert clear.sum() > 300 and 0.2 < hit[clear].mean() < 0.8
-        ref = []
-        for k in range(0, len(d), 8):
-            A, B = Body(d.polys_a[k], d.pos_a[k], d.rot_a[k]), Body(d.polys_b[k], pos_b[k], d.rot_b[k])
-            sep, _ = sat_separation(A, B)
-            ref.append(sep if sep <= 0 else gap_features(A, B))
-        ref = np.array(ref)
+        ref = reference_distances(d, pos_b, range(0, len(d), 8))
         sub = hit[::8]
         tol = w.tol[::8]
         clear = np.abs(ref - m) > 1.01 * tol
@@ -191,12 +196,7 @@ def test_against_the_independent_reference():
     """A smaller sample straight against the separating-axis (depth) and feature (gap) reference."""
     rng = np.random.default_rng(7)
     d = make_pairs(rng, 120, "free", "small")
-    ref = []
-    for k in range(len(d)):
-        A, B = Body(d.polys_a[k], d.pos_a[k], d.rot_a[k]), Body(d.polys_b[k], d.pos_b[k], d.rot_b[k])
-        sep, _ = sat_separation(A, B)
-        ref.append(sep if sep <= 0 else gap_features(A, B))
-    ref = np.array(ref)
+    ref = reference_distances(d, d.pos_b, range(len(d)))
     sa, sb = sets(d)
     tol = distance(sa, sb, *d.args()).tol
     S = float(np.median(d.scale))
