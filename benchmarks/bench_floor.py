@@ -50,7 +50,7 @@ BULK_PAIRS = 2_000_000  # poses of 384 MB: well beyond the caches of a server CP
 
 
 @numba.njit(cache=True)
-def _floor_loop(pos_a, rot_a, pos_b, rot_b, out):
+def floor_loop(pos_a, rot_a, pos_b, rot_b, out):
     """Read both poses, b's height along a's axis and the axes' cosine, one compare per pair."""
     for i in range(pos_a.shape[0]):
         h = 0.0
@@ -63,7 +63,7 @@ def _floor_loop(pos_a, rot_a, pos_b, rot_b, out):
 
 
 @numba.njit(cache=True)
-def _trivial(pos_a, rot_a, pos_b, rot_b):
+def trivial_call(pos_a, rot_a, pos_b, rot_b):
     return pos_a[0] + rot_a[0, 0] + pos_b[0] + rot_b[0, 0]
 
 
@@ -98,7 +98,7 @@ def kernel_rows(n_vertices, n_pairs, repeats, rng):
     for name, poses in sets.items():
         n = len(poses[0])
         out = np.empty(n, dtype=np.bool_)
-        t_floor = _per_pair_ns(lambda p=poses, o=out: _floor_loop(*p, o), n, repeats)
+        t_floor = _per_pair_ns(lambda p=poses, o=out: floor_loop(*p, o), n, repeats)
         t_pb = _per_pair_ns(lambda p=poses: col.collide(*p, parallel=False), n, repeats)
         rows.append(
             {
@@ -119,7 +119,7 @@ def latency_rows(repeats):
     col = pb.Collider(a, b)
     one = tuple(np.ascontiguousarray(x[0]) for x in facing_poses(1, np.random.default_rng(1), radius=RADIUS_B))
     calls = {
-        "trivial @njit call, same 4 arrays": lambda: _trivial(*one),
+        "trivial @njit call, same 4 arrays": lambda: trivial_call(*one),
         "Collider.collide_pair": lambda: col.collide_pair(*one),
         "Collider.collide, one pair": lambda: col.collide(*one),
         "pb.collide, one pair": lambda: pb.collide(a, b, *one),

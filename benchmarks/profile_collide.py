@@ -68,12 +68,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_floor import (  # noqa: E402  (the same floor, sets and options)
     RADIUS_A,
     RADIUS_B,
-    _floor_loop,
-    _trivial,
+    floor_loop,
     parse_args,
     pose_sets,
     report,
     seconds_per_call,
+    trivial_call,
 )
 
 STAGES = (
@@ -145,7 +145,7 @@ def stage_rows(n_vertices, n_pairs, repeats, rng):
         out = np.empty(n, dtype=np.bool_)
         hit, cs, cont = np.empty(n, np.bool_), np.empty(n, np.int8), np.empty((0, 3))
         fns = {
-            "floor": lambda p=poses, o=out: _floor_loop(*p, o),
+            "floor": lambda p=poses, o=out: floor_loop(*p, o),
             **{
                 STAGES[k - 1]: (lambda k=k, p=poses, o=out: _staged(k, A, B, *p, rtol, eps, o)) for k in (2, 3, 4, 5, 6)
             },
@@ -192,7 +192,7 @@ def latency_steps(repeats):
     shapes = (ka.floats, ka.ints, kb.floats, kb.ints)
 
     calls = {
-        "trivial @njit call, same 4 arrays": lambda: _trivial(*one),
+        "trivial @njit call, same 4 arrays": lambda: trivial_call(*one),
         "one-pair kernel, all 14 arguments": lambda: kernel(*shapes, *one, *scalars),
         # one expression each (walrus), so that no step adds a Python call of its own
         "+ the contact as an array": lambda: ((o := kernel(*shapes, *one, *scalars)), np.array((o[4], o[5], o[6]))),
