@@ -1,6 +1,6 @@
 """The compiled loops' random numbers (``prismbatch._kernels.streams``): bit for bit against a
 plain-Python generator, the ziggurat's tables against their defining areas, and the draws'
-distribution against the exact normal law."""
+distribution against the exact normal law; the stream keys against NumPy's SeedSequence."""
 
 from __future__ import annotations
 
@@ -8,9 +8,11 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy import integrate, stats
 
-from prismbatch._kernels.streams import ZIGGURAT, standard_normals
+from prismbatch._kernels.streams import ZIGGURAT, spawned_keys, standard_normals
 
 from reference import StreamReference
 
@@ -62,3 +64,19 @@ def test_normal_distribution():
     # streams of neighbouring keys are unrelated
     y = standard_normals(2025, 0, 500_000, 8)
     assert abs(np.corrcoef(x, y.ravel())[0, 1]) < 5 / math.sqrt(x.size)
+
+
+_KEY = st.one_of(st.integers(0, 2**32 - 1), st.integers(2**32 - 2, 2**32 + 2), st.integers(0, 2**63 - 1))
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    seed=st.one_of(st.integers(0, 2**32), st.integers(0, 2**128 + 1), st.integers(2**127, 2**300)),
+    keys=st.lists(_KEY, min_size=0, max_size=12),
+    child=st.sampled_from([0, 1, 2, 2**32 - 1]),
+)
+def test_spawned_keys_are_seedsequences(seed, keys, child):
+    """One key or two 32-bit words, seeds of one to ten words (the pool holds four)."""
+    want = [np.random.SeedSequence(seed, spawn_key=(k, child)).generate_state(1, np.uint64)[0] for k in keys]
+    got = spawned_keys(seed, np.array(keys, dtype=np.int64), child)
+    assert got.dtype == np.uint64 and got.tolist() == [int(w) for w in want]
