@@ -103,34 +103,60 @@ def _draw_proposal(state, z, t, q, j0, j1, mu, cum, active, spread, defensive):
 
 
 @jit(inline="always", error_model="numpy")
-def _log_weight(z, t, q, j0, j1, mu, lpi, active, consts):
-    """``log phi(z) / q(z)`` of the draw ``z[t]`` of :func:`_draw_proposal` (``log pi_j = lpi[j]``),
-    at most ``-log d``. Only hits need it, so the loop forms it after the test. ``consts``:
-    ``(log d, log(1 - d), 0.5 / spread^2, n_active log spread)``. The tests compare this with a
-    NumPy form of the same formulas."""
-    log_d, log_1md, half_inv_s2, log_spread_n = consts
-    k = z.shape[1]
+def _centre_exponent(z, t, q, j, mu, lpi, active, consts, zz):
+    """``log(pi_j N(z; mu_j, S) / N(z; 0, I))`` of the draw ``z[t]`` (``zz = |z|^2`` over the active
+    components), the mixture's centre j against the nominal distribution."""
+    half_inv_s2, log_spread_n = consts[2], consts[3]
+    d2 = 0.0
+    for c in range(z.shape[1]):
+        if active[q, c]:
+            e = z[t, c] - mu[j, c]
+            d2 += e * e
+    return lpi[j] - half_inv_s2 * d2 + 0.5 * zz - log_spread_n
+
+
+@jit(inline="always", error_model="numpy")
+def _weight(z, t, q, j0, j1, mu, lpi, active, consts):
+    """``phi(z) / q(z)`` of the draw ``z[t]`` of :func:`_draw_proposal` (``log pi_j = lpi[j]``),
+    at most ``1 / d``; 0.0 where it may be below ``exp(-600)``, whose logarithm
+    :func:`_log_weight` then gives. Only hits need it, so the loop forms it after the test.
+    ``consts``: ``(log d, log(1 - d), 0.5 / spread^2, n_active log spread, d)``. One exponential
+    a centre: the logarithm's form costs three transcendentals a hit, some 10 % of the loop."""
     zz = 0.0
-    for c in range(k):
+    for c in range(z.shape[1]):
         if active[q, c]:
             zz += z[t, c] * z[t, c]
-    # log sum_j pi_j exp(-|z - mu_j|^2 / 2 spread^2) in one pass (running maximum m, sum s of
-    # exp(e_j - m)). A term below exp(-60) of the largest is not added: it could not change
-    # s >= 1 in double precision, and skipping it saves its exponential.
+    ratio = 0.0  # q(z) / phi(z) over the centres' part
+    for j in range(j0, j1):
+        e = _centre_exponent(z, t, q, j, mu, lpi, active, consts, zz)
+        if e > 600.0:  # the weight may leave the normal floats (and exp(e) overflow at 709)
+            return 0.0
+        ratio += math.exp(e)
+    d = consts[4]
+    return 1.0 / (d + (1.0 - d) * ratio)
+
+
+@jit(inline="always", error_model="numpy")
+def _log_weight(z, t, q, j0, j1, mu, lpi, active, consts):
+    """``log(phi(z) / q(z))`` of the draw ``z[t]``, for weights of any size (see :func:`_weight`).
+    The tests compare both with a NumPy form of the same formulas."""
+    log_d, log_1md = consts[0], consts[1]
+    zz = 0.0
+    for c in range(z.shape[1]):
+        if active[q, c]:
+            zz += z[t, c] * z[t, c]
+    # log sum_j exp(e_j) in one pass (running maximum m, sum acc of exp(e_j - m)). A term below
+    # exp(-60) of the largest is not added: it could not change acc >= 1 in double precision,
+    # and skipping it saves its exponential.
     m, acc = -math.inf, 0.0
     for j in range(j0, j1):
-        d2 = 0.0
-        for c in range(k):
-            if active[q, c]:
-                e = z[t, c] - mu[j, c]
-                d2 += e * e
-        e = lpi[j] - half_inv_s2 * d2
+        e = _centre_exponent(z, t, q, j, mu, lpi, active, consts, zz)
         if e > m:
             acc = (acc * math.exp(m - e) if m - e > -60.0 else 0.0) + 1.0
             m = e
         elif e - m > -60.0:
             acc += math.exp(e - m)
-    lr = (m + math.log(acc) if acc != 1.0 else m) + 0.5 * zz - log_spread_n  # one term: no log needed
+    lr = m + math.log(acc) if acc != 1.0 else m  # one term: no log needed
     # -log(d + (1 - d) exp(lr)), as a log-sum-exp
     x, y = log_d, log_1md + lr
     top = max(x, y)
@@ -191,13 +217,14 @@ def _count_loop(
         n_active = 0
         for c in range(k):
             n_active += active[q, c]
-        consts = (log_d, log_1md, half_inv_s2, n_active * math.log(spread))
+        consts = (log_d, log_1md, half_inv_s2, n_active * math.log(spread), defensive)
         for j in range(3):  # a's nominal pose, for six-component noise
             pos_a[t, j] = pos_a0[q, j]
             for i in range(3):
                 rot_a[t, i, j] = rot_a0[q, i, j]
         inv_a = frame_inverse(rot_a[t])  # a stays put under six-component noise
         count, top, s1, s2, s3 = 0, -math.inf, 0.0, 0.0, 0.0
+        top_w, inv_top = 0.0, math.inf  # exp(top) and exp(-top) while top >= -600
         bad[t] = -1
         for s in range(task_count[t]):
             state = sample_state(keys[q], np.uint64(task_start[t] + s))
@@ -222,11 +249,21 @@ def _count_loop(
             hit = pair_of_sets(a, b, 0, 0, pos_a[t], rot_a[t], inv_a, pos_b[t], rot_b[t], rtol, atol, eps, None)[0]
             if hit:
                 count += 1
-                lw = _log_weight(z, t, q, j0, j1, mu, lpi, active, consts) if j1 > j0 else 0.0
-                if lw > top:  # a running shift keeps the sums' relative error for tiny weights
-                    scale = math.exp(top - lw)
-                    s1, s2, s3, top = s1 * scale, s2 * scale * scale, s3 * scale * scale * scale, lw
-                e = math.exp(lw - top)
+                # a running shift (the largest log weight) keeps the sums' relative error for tiny weights
+                w = _weight(z, t, q, j0, j1, mu, lpi, active, consts) if j1 > j0 else 1.0
+                if w > 0.0:
+                    if w > top_w:
+                        scale = top_w / w
+                        s1, s2, s3 = s1 * scale, s2 * scale * scale, s3 * scale * scale * scale
+                        top, top_w, inv_top = math.log(w), w, 1.0 / w
+                    e = w * inv_top
+                else:  # below exp(-600): in logarithms
+                    lw = _log_weight(z, t, q, j0, j1, mu, lpi, active, consts)
+                    if lw > top:
+                        scale = math.exp(top - lw)
+                        s1, s2, s3 = s1 * scale, s2 * scale * scale, s3 * scale * scale * scale
+                        top, top_w, inv_top = lw, math.exp(lw), math.exp(-lw)
+                    e = math.exp(lw - top)
                 s1 += e
                 s2 += e * e
                 s3 += e * e * e

@@ -146,20 +146,27 @@ def _reference_sample(key, u, L, active, mix, poses):
     return pa + xa[:3], expm_reference(xa[3:]) @ ra, pb + x[:3], expm_reference(x[3:6]) @ rb, lw
 
 
-@pytest.mark.parametrize("k", [6, 12])
-def test_count_kernel_matches_plain_reference(k):
+@pytest.mark.parametrize("k, far", [(6, 0.0), (12, 0.0), (6, 34.0), (6, 40.0)])
+def test_count_kernel_matches_plain_reference(k, far):
     """The compiled sampling loop (draws, mixture, weights, poses, contact) against the same
-    draws made in plain Python, posed by the power-series exponential and tested by collide."""
+    draws made in plain Python, posed by the power-series exponential and tested by collide.
+    ``far``: query 0 lies out of reach of its nominal noise, and one centre ``far`` standard
+    deviations out brings it into contact; those hits' weights straddle exp(-600), where the
+    loop leaves linear weights for their logarithms (34), or all lie below it (40)."""
     rng = np.random.default_rng(40 + k)
     A, B = pb.Prism.regular(5, 1.0), pb.Prism.regular(7, 0.8)
     col = pb.Collider(A, B)
     nq = 2
-    pos_b = np.array([[0, 0, 0.15], [0.3, 0, 0.25]])
+    pos_b = np.array([[0, 0, 0.05 if far else 0.15], [0.3, 0, 0.25]])
     poses = (np.zeros((nq, 3)), np.stack([DOWN] * nq), pos_b, np.stack([np.eye(3)] * nq))
     L = 0.12 * np.eye(k)[None] + 0.02 * rng.normal(size=(nq, k, k))
+    if far:  # lowered by some 0.003 a standard deviation
+        L[0] *= 0.003 / 0.12
     L[:, :, 4] = 0.0  # a noise component that moves nothing: not drawn
     run = _Run(col, poses, L, 1.96, 0.1, False)
     mu = rng.normal(size=(2, k)) * run.active[0]
+    if far:
+        mu[0] = -far * np.eye(k)[2]
     lpi = np.log([0.3, 0.7])
     how = np.array([IMPORTANCE, PLAIN])
     mixtures = run._packed({0: (mu, lpi, run.active[0])}, how)
@@ -177,10 +184,15 @@ def test_count_kernel_matches_plain_reference(k):
         lws = np.array(lws)
         assert hits[t] == len(lws) > 10
         assert len(lws) < count[t]
-        want = [np.exp(p * lws).sum() for p in (1, 2, 3)]
-        np.testing.assert_allclose(np.exp(np.arange(1, 4) * shift[t]) * sums[t], want, rtol=1e-12)
+        np.testing.assert_allclose(shift[t], lws.max(), rtol=1e-13)
+        want = [np.exp(p * (lws - shift[t])).sum() for p in (1, 2, 3)]
+        np.testing.assert_allclose(sums[t], want, rtol=1e-12)
         if q == 1:
             assert shift[t] == 0.0 and sums[t].tolist() == [len(lws)] * 3
+        elif far == 34.0:
+            assert (lws < -600).sum() > 3 and (lws > -600).sum() > 3
+        elif far == 40.0:
+            assert lws.max() < -600
 
 
 @pytest.mark.parametrize("height, method", [(0.1, PLAIN), (0.3719, IMPORTANCE), (0.47534, IMPORTANCE)])
