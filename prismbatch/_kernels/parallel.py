@@ -36,7 +36,8 @@ def parallel_overlap(P, ix, Ra, Rb, ox, oy, oz, dx, dy, dz):
     avx, avy, aeang, aetab, bvx, bvy, beang, betab = P
     sa, na, sb, nb = ix
     # b's centre and the in-plane rotation M in a's centred frame
-    px, py, pz, m00, m01, m10, m11, _, _ = relative_pose(frame_inverse(Ra), dx, dy, dz, Rb)
+    inv = frame_inverse(Ra)
+    px, py, pz, m00, m01, m10, m11, _, _ = relative_pose(inv, dx, dy, dz, Rb)
     # The minimum's axis n (from a to b), the touching point r on the line of the edge it comes from (b's
     # deepest vertex projected onto a's edge, or a's deepest onto b's) and that edge (start s, vector e).
     best, nx, ny, rx, ry, sx, sy, ex, ey, on_b = math.inf, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, False
@@ -77,9 +78,9 @@ def parallel_overlap(P, ix, Ra, Rb, ox, oy, oz, dx, dy, dz):
     if on_b:  # the point of b's edge; a's point lies the depth behind it
         qx, qy = qx + best * nx, qy + best * ny
     z = max(0.0, pz)  # both bodies hold every height from here on
-    gx = Ra[0, 0] * nx + Ra[0, 1] * ny
-    gy = Ra[1, 0] * nx + Ra[1, 1] * ny
-    gz = Ra[2, 0] * nx + Ra[2, 1] * ny
+    gx = inv[0] * nx + inv[3] * ny  # a normal: through the inverse's transpose (see tilted_overlap)
+    gy = inv[1] * nx + inv[4] * ny
+    gz = inv[2] * nx + inv[5] * ny
     gn = math.sqrt(gx * gx + gy * gy + gz * gz)
     point = (
         ox + Ra[0, 0] * qx + Ra[0, 1] * qy + Ra[0, 2] * z,
@@ -206,8 +207,10 @@ def tilted_overlap(P, ix, Ra, Rb, dx, dy, dz, ex, ey, ez):
         best = _better(P, ix, rel, fx, fy, fz, -qy, qx, 0.0, ACROSS, best)  # d_a x b's edge, both ways
         best = _better(P, ix, rel, fx, fy, fz, qy, -qx, 0.0, ACROSS, best)
     v, ux, uy, uz = best
-    nx = Ra[0, 0] * ux + Ra[0, 1] * uy + Ra[0, 2] * uz
-    ny = Ra[1, 0] * ux + Ra[1, 1] * uy + Ra[1, 2] * uz
-    nz = Ra[2, 0] * ux + Ra[2, 1] * uy + Ra[2, 2] * uz
+    # a normal maps to world axes by the inverse's transpose (points map by Ra = inv^-1): the two
+    # differ by Ra's departure from orthonormality, which the input checks allow up to 1e-9
+    nx = inv[0] * ux + inv[3] * uy + inv[6] * uz
+    ny = inv[1] * ux + inv[4] * uy + inv[7] * uz
+    nz = inv[2] * ux + inv[5] * uy + inv[8] * uz
     nn = math.sqrt(nx * nx + ny * ny + nz * nz)
     return v, (nx / nn, ny / nn, nz / nn)
