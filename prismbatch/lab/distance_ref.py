@@ -41,6 +41,7 @@ __all__ = [
     "gap_qp",
     "check_gap",
     "signed_distance_reference",
+    "signed_distance_of",
     "residual",
     "HIGHSPY_MISSING",
 ]
@@ -385,7 +386,11 @@ def check_gap(A, B, gap, x, y, tol, scale, sep=-np.inf, qp_rel=1e-6, time_limit=
 
 def signed_distance_reference(xy_a, pos_a, rot_a, xy_b, pos_b, rot_b):
     """(signed distance, kind): kind "sat" (overlap: minus the depth) or "features" (the gap)."""
-    A, B = Body(xy_a, pos_a, rot_a), Body(xy_b, pos_b, rot_b)
+    return signed_distance_of(Body(xy_a, pos_a, rot_a), Body(xy_b, pos_b, rot_b))
+
+
+def signed_distance_of(A, B):
+    """:func:`signed_distance_reference` of two :class:`Body` objects."""
     sep, _ = sat_separation(A, B)
     if sep <= 0.0:
         return sep, "sat"

@@ -25,7 +25,7 @@ from scipy.spatial.transform import Rotation
 import prismbatch as pb
 from prismbatch.collide import pair_scale_tolerance
 from prismbatch.distance import AXES_DEPTH, EPA_STOPPED, PENETRATING, SEPARATED, TOUCHING, DistanceResult, distance
-from prismbatch.lab.distance_ref import Body, gap_features, gap_qp, residual, sat_separation
+from prismbatch.lab.distance_ref import Body, gap_features, gap_qp, residual, sat_separation, signed_distance_of
 from prismbatch.sampling import free_poses
 
 from helpers import (
@@ -63,8 +63,7 @@ def reference(d, pos_b=None):
     out, bodies = [], []
     for k in range(len(d)):
         A, B = Body(d.polys_a[k], d.pos_a[k], d.rot_a[k]), Body(d.polys_b[k], pos_b[k], d.rot_b[k])
-        sep, _ = sat_separation(A, B)
-        out.append(sep if sep <= 0 else gap_features(A, B))
+        out.append(signed_distance_of(A, B)[0])
         bodies.append((A, B))
     return np.array(out), bodies
 

@@ -61,8 +61,7 @@ def test_the_numbers_are_those_of_the_pairs(run):
         for k in range(0, len(bucket), 37):
             r = pb.distance(sa, sb, *(x[k] for x in P), witness=True)
             A, B = R.Body(sa.xy, P[0][k], P[1][k]), R.Body(sb.xy, P[2][k], P[3][k])
-            sep, _ = R.sat_separation(A, B)
-            ref = sep if sep <= 0 else R.gap_features(A, B)
+            ref = R.signed_distance_of(A, B)[0]
             i = rows[k]
             assert p["pb"][i] == r.distance[0] and p["reference"][i] == ref
             assert p["pb_err"][i] == pytest.approx(abs(r.distance[0] - ref) / r.tol[0])
