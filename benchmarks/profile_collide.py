@@ -28,8 +28,8 @@ comes from the kernel's trace (``Collider.explain``) on a sample.
 
 One query (``Collider.collide_pair`` on one plain pair of 36-gons), taken apart the same way: a
 trivial ``@njit`` call with the same four pose arrays; the compiled one-pair kernel called with
-all its arguments (the two prism arrays of each shape, the four poses, six scalars: each crosses
-Numba's dispatcher, which types and unboxes it); then the contact as a NumPy array; then the
+all its arguments (the two prism arrays of each shape, the four poses, the scalars as one array,
+the contact's output array: each crosses Numba's dispatcher, which types and unboxes it); then the
 result tuple; then the whole method (its checks of the call's form).
 
 One thread, medians over repeats, all figures from one run:
@@ -52,6 +52,7 @@ from prismbatch._kernels.batch import (
     collide_pair,
     collide_serial,
     frame_inverse,
+    pair_params,
     pair_tolerance,
     relative_pose,
 )
@@ -186,19 +187,19 @@ def latency_steps(repeats):
     ka, kb = pb.PrismSet([a.xy]).kernel_arrays(), pb.PrismSet([b.xy]).kernel_arrays()
     one = tuple(np.ascontiguousarray(x[0]) for x in facing_poses(1, np.random.default_rng(1), radius=RADIUS_B))
     f64 = np.dtype(np.float64)
-    scalars = (col.rtol, 0.0, float(np.finfo(f64).eps), ortho_tolerance(f64, f64), ortho_tolerance(f64, f64),
-               SUPPORTED_RANGE["float64"][1])  # fmt: skip
+    params = pair_params(col.rtol, 0.0, float(np.finfo(f64).eps), ortho_tolerance(f64, f64),
+                         ortho_tolerance(f64, f64), SUPPORTED_RANGE["float64"][1])  # fmt: skip
     kernel = collide_pair[f64]
     shapes = (ka.floats, ka.ints, kb.floats, kb.ints)
 
     calls = {
         "trivial @njit call, same 4 arrays": lambda: trivial_call(*one),
-        "one-pair kernel, all 14 arguments": lambda: kernel(*shapes, *one, *scalars),
+        "one-pair kernel, all 10 arguments": lambda: kernel(*shapes, *one, params, np.empty(3)),
         # one expression each (walrus), so that no step adds a Python call of its own
-        "+ the contact as an array": lambda: ((o := kernel(*shapes, *one, *scalars)), np.array((o[4], o[5], o[6]))),
         "+ the result tuple": lambda: (
-            (o := kernel(*shapes, *one, *scalars)),
-            PairResult(o[2], o[3], np.array((o[4], o[5], o[6]))),
+            (c := np.empty(3)),
+            (o := kernel(*shapes, *one, params, c)),
+            PairResult(o[2], o[3], c),
         ),
         "Collider.collide_pair": lambda: col.collide_pair(*one),
     }

@@ -164,7 +164,7 @@ class Collider:
         self._ortho_tols = {t: ortho_tolerance(t, dt) for t in (np.dtype(np.float64), np.dtype(np.float32))}
         self._pair_kernel = _batch.collide_pair[dt]
         ortho = self._ortho_tols[dt]  # the fast path takes arrays of the compute dtype only
-        self._pair_scalars = (self.rtol, self.atol, self._eps, ortho, ortho, self._max_magnitude)
+        self._pair_params = _batch.pair_params(self.rtol, self.atol, self._eps, ortho, ortho, self._max_magnitude)
         self._n_shapes = None
         for per, s, nm in ((self._a_per, set_a, "shape_a"), (self._b_per, set_b, "shape_b")):
             if per:
@@ -198,11 +198,9 @@ class Collider:
         if self._is_single_pair(pos_a, rot_a, pos_b, rot_b, quat_order):
             # One plain pair: the compiled one-pair path (same kernel, far less Python).
             r = self.collide_pair(pos_a, rot_a, pos_b, rot_b)
-            return CollisionResult(
-                np.array([r.hit]),
-                np.array([r.case], dtype=np.int8),
-                r.contact[None, :].astype(self.dtype) if contact else None,
-            )
+            hit, case = np.empty(1, dtype=bool), np.empty(1, dtype=np.int8)  # (np.array([x]) costs twice)
+            hit[0], case[0] = r.hit, r.case
+            return CollisionResult(hit, case, r.contact[None, :].astype(self.dtype) if contact else None)
         n, pa, ra, pb, rb = self._batch_poses(pos_a, rot_a, pos_b, rot_b, quat_order, parallel)
         hit, case, cont = _batch.run(
             self._a,
@@ -229,9 +227,9 @@ class Collider:
         if self._is_single_pair(pos_a, rot_a, pos_b, rot_b, quat_order):
             # One plain pair: checks and set-up in one compiled call (a controller's query).
             pair = tuple(_kernel_array(x, x.shape, self.dtype) for x in (pos_a, rot_a, pos_b, rot_b))
-            problem, val, res = one_pair_distance(self._shape_args, pair, self._pair_scalars, self.dtype, witness)
+            problem, val, res = one_pair_distance(self._shape_args, pair, self._pair_params, self.dtype, witness)
             if problem:
-                raise ValueError(_pair_problem(problem, val, self._pair_scalars[3], self._max_magnitude))
+                raise ValueError(_pair_problem(problem, val, self._pair_params[3], self._max_magnitude))
             return res
         poses = self._batch_poses(pos_a, rot_a, pos_b, rot_b, quat_order, parallel)
         return signed_distance(
@@ -332,14 +330,15 @@ class Collider:
         if _pair_closed[self.dtype] and quat_order is None:
             # The common case, kept short (a one-pair call takes about a microsecond): the kernel,
             # closed to other signatures, takes the arrays only if they are ready as they are.
+            contact = np.empty(3)
             try:
-                out = self._pair_kernel(*self._shape_args, pos_a, rot_a, pos_b, rot_b, *self._pair_scalars)
+                out = self._pair_kernel(*self._shape_args, pos_a, rot_a, pos_b, rot_b, self._pair_params, contact)
             except TypeError:  # another dtype or layout, a read-only array, not an array
                 out = None
             if out is not None and out[0] != _batch.PAIR_SHAPE_PROBLEM:
                 if out[0]:
-                    raise ValueError(_pair_problem(out[0], out[1], self._pair_scalars[3], self._max_magnitude))
-                return _pair_result(out)
+                    raise ValueError(_pair_problem(out[0], out[1], self._pair_params[3], self._max_magnitude))
+                return _new_tuple(PairResult, (out[2], out[3], contact))
         return self._converted_pair(pos_a, rot_a, pos_b, rot_b, quat_order)
 
     def _converted_pair(self, pos_a, rot_a, pos_b, rot_b, quat_order):
@@ -349,7 +348,9 @@ class Collider:
             raise TypeError("collide_pair needs a pose for b: pos_b and rot_b, or two 4x4 transforms")
         Pa, Ra, ta = self._one_pose(pos_a, rot_a, quat_order, "a")
         Pb, Rb, tb = self._one_pose(pos_b, rot_b, quat_order, "b")
-        args = (*self._shape_args, Pa, Ra, Pb, Rb, self.rtol, self.atol, self._eps, ta, tb, self._max_magnitude)
+        contact = np.empty(3)
+        params = _batch.pair_params(self.rtol, self.atol, self._eps, ta, tb, self._max_magnitude)
+        args = (*self._shape_args, Pa, Ra, Pb, Rb, params, contact)
         if _pair_closed[self.dtype]:
             out = self._pair_kernel(*args)
         else:
@@ -359,7 +360,7 @@ class Collider:
         problem, val = out[0], out[1]
         if problem:
             raise ValueError(_pair_problem(problem, val, ta if problem <= 4 else tb, self._max_magnitude))
-        return _pair_result(out)
+        return _new_tuple(PairResult, (out[2], out[3], contact))
 
     def explain(self, pos_a, rot_a, pos_b, rot_b):
         """Step-by-step record of how one pose pair is decided (for ``prismbatch replay``).
@@ -424,12 +425,23 @@ class Collider:
         return _kernel_array(P, (3,), self.dtype), _kernel_array(R, (3, 3), self.dtype), np.inf
 
     def _is_single_pair(self, pos_a, rot_a, pos_b, rot_b, quat_order):
+        """One plain pair of ndarrays of the compute dtype (written out flat: a loop over the four
+        took 0.8 µs of a 4 µs one-pair query)."""
         if self._a_per or self._b_per or quat_order is not None:
             return False
-        for x, shape in ((pos_a, (3,)), (rot_a, (3, 3)), (pos_b, (3,)), (rot_b, (3, 3))):
-            if not (isinstance(x, np.ndarray) and x.shape == shape and x.dtype == self.dtype):
-                return False
-        return True
+        if not (type(pos_a) is type(rot_a) is type(pos_b) is type(rot_b) is np.ndarray):
+            return False
+        dt = self.dtype
+        return (
+            pos_a.shape == (3,)
+            and pos_b.shape == (3,)
+            and rot_a.shape == (3, 3)
+            and rot_b.shape == (3, 3)
+            and pos_a.dtype == dt
+            and rot_a.dtype == dt
+            and pos_b.dtype == dt
+            and rot_b.dtype == dt
+        )
 
     def _ortho_tol(self, rot):
         """:func:`~prismbatch.poses.ortho_tolerance` of the rotation's own dtype (cached per dtype)."""
@@ -497,13 +509,9 @@ class PairResult(NamedTuple):
     contact: np.ndarray
 
 
+#: PairResults are built with tuple.__new__: the class's own __new__ is one more Python call (some
+#: 50 ns of a one-pair query).
 _new_tuple = tuple.__new__
-
-
-def _pair_result(out):
-    """The PairResult of the one-pair kernel's ``(problem, value, hit, case, cx, cy, cz)``, built with
-    tuple.__new__ (the class's own __new__ is one more Python call: some 50 ns of a 1.8 µs query)."""
-    return _new_tuple(PairResult, (out[2], out[3], np.array(out[4:])))
 
 
 def collide(
@@ -598,6 +606,7 @@ def collide(
 
 
 _recent = {}  # key -> (a, b, Collider); the shapes are kept alive so their ids stay theirs
+_DTYPES = {np.float64: np.dtype(np.float64), np.float32: np.dtype(np.float32)}
 
 
 def collider_for(shape_a, shape_b, rtol, atol, dtype):
@@ -605,11 +614,11 @@ def collider_for(shape_a, shape_b, rtol, atol, dtype):
     ``time_of_impact``, ``collision_probability``): the last few are kept, as a loop
     calling them on the same shapes would otherwise rebuild and recheck them every call."""
     try:
-        key = (id(shape_a), id(shape_b), type(rtol), rtol, type(atol), atol, np.dtype(dtype))
-        hash(key)
-    except TypeError:  # an unhashable tolerance or dtype: Collider says what is wrong with it
+        dt = _DTYPES.get(dtype) or np.dtype(dtype)  # (np.dtype() alone costs a one-pair query 0.1 µs)
+        key = (id(shape_a), id(shape_b), type(rtol), rtol, type(atol), atol, dt)
+        hit = _recent.get(key)
+    except TypeError:  # an unhashable tolerance or dtype, or no dtype: Collider says what is wrong with it
         return Collider(shape_a, shape_b, rtol=rtol, atol=atol, dtype=dtype)
-    hit = _recent.get(key)
     if hit is not None and hit[0] is shape_a and hit[1] is shape_b:
         return hit[2]
     col = Collider(shape_a, shape_b, rtol=rtol, atol=atol, dtype=dtype)

@@ -189,7 +189,7 @@ def distance(
     return col.distance(pos_a, rot_a, pos_b, rot_b, witness=witness, quat_order=quat_order, parallel=parallel)
 
 
-def one_pair_distance(shape_args, pair, scalars, dtype, witness):
+def one_pair_distance(shape_args, pair, params, dtype, witness):
     """:func:`distance` of one pair whose poses are C-contiguous (3,) and (3, 3) arrays of ``dtype``.
 
     Parameters
@@ -198,8 +198,9 @@ def one_pair_distance(shape_args, pair, scalars, dtype, witness):
         ``(a.floats, a.ints, b.floats, b.ints)`` of the packed single prisms.
     pair : tuple of numpy.ndarray
         ``(pos_a, rot_a, pos_b, rot_b)``, checked in the kernel.
-    scalars : tuple
-        ``(rtol, atol, eps, ortho_tol_a, ortho_tol_b, max_magnitude)``, as ``collide_pair`` takes them.
+    params : numpy.ndarray
+        ``(rtol, atol, eps, ortho_tol_a, ortho_tol_b, max_magnitude)`` as float64, as ``collide_pair``
+        takes them (``prismbatch._kernels.batch.pair_params``).
     dtype : numpy.dtype
     witness : bool
 
@@ -211,7 +212,7 @@ def one_pair_distance(shape_args, pair, scalars, dtype, witness):
         (as ``collide_pair``'s) and None.
     """
     kern = distance_pair[np.dtype(dtype)]
-    problem, val, d, t, status, code, n, p, q = first_call(kern, kern, *shape_args, *pair, *scalars, bool(witness))
+    problem, val, d, t, status, code, n, p, q = first_call(kern, kern, *shape_args, *pair, params, bool(witness))
     if problem:
         return problem, val, None
     head = (np.array([d]), np.array([status], np.int8), np.array([t]), np.array([code], np.int8))

@@ -475,35 +475,31 @@ def pair_problem(Pa, Ra, Pb, Rb, ortho_tol_a, ortho_tol_b, max_magnitude):
     return 0, 0.0
 
 
-def _collide_pair(
-    a_floats,
-    a_ints,
-    b_floats,
-    b_ints,
-    Pa,
-    Ra,
-    Pb,
-    Rb,
-    rtol,
-    atol,
-    eps,
-    ortho_tol_a,
-    ortho_tol_b,
-    max_magnitude,
-):
+def pair_params(rtol, atol, eps, ortho_tol_a, ortho_tol_b, max_magnitude):
+    """The scalars of the one-pair kernels as one float64 array: each scalar argument costs a call
+    some 40 ns at the dispatcher, as an array does."""
+    return np.array([rtol, atol, eps, ortho_tol_a, ortho_tol_b, max_magnitude], dtype=np.float64)
+
+
+def _collide_pair(a_floats, a_ints, b_floats, b_ints, Pa, Ra, Pb, Rb, params, contact):
     """One pair, with its input checks compiled in (the low-latency path).
 
-    Returns (problem, value, hit, case, cx, cy, cz). ``problem`` 0 means the
-    inputs are valid; otherwise it names the first bad input (see
-    collide._pair_problem) and ``value`` gives the offending number.
+    ``params``: :func:`pair_params`. Returns (problem, value, hit, case) and writes the contact
+    point (NaN if no hit) into ``contact``, a float64 (3,) array: the caller's ``np.empty(3)``
+    costs a third of building the array from three returned floats. ``problem`` 0 means the
+    inputs are valid; otherwise it names the first bad input (see collide._pair_problem) and
+    ``value`` gives the offending number (``contact`` is then not written).
     """
-    nan = math.nan
+    rtol, atol, eps, ortho_tol_a, ortho_tol_b, max_magnitude = (
+        params[0], params[1], params[2], params[3], params[4], params[5]
+    )  # fmt: skip
     problem, val = pair_problem(Pa, Ra, Pb, Rb, ortho_tol_a, ortho_tol_b, max_magnitude)
     if problem:
-        return problem, val, False, 0, nan, nan, nan
+        return problem, val, False, 0
     a, b = unpack(a_floats, a_ints), unpack(b_floats, b_ints)
     hit, case, cx, cy, cz = pair_of_sets(a, b, 0, 0, Pa, Ra, None, Pb, Rb, rtol, atol, eps, None)
-    return 0, 0.0, hit, case, cx, cy, cz
+    contact[0], contact[1], contact[2] = cx, cy, cz
+    return 0, 0.0, hit, case
 
 
 #: The one-pair kernel, one compiled copy per dtype. Each is closed to new signatures once

@@ -23,19 +23,18 @@ def _distance_pair(
     Ra,
     Pb,
     Rb,
-    rtol,
-    atol,
-    eps,
-    ortho_tol_a,
-    ortho_tol_b,
-    max_magnitude,
+    params,
     witness,
 ):
     """(problem, value, distance, tol, status, solver, normal, point_a, point_b) of one pair.
 
-    ``problem`` 0: valid inputs; otherwise the first bad one, as ``collide_pair``'s,
-    with ``value`` the offending number. The 3-tuples are NaN unless ``witness``.
+    ``params``: :func:`~.batch.pair_params`. ``problem`` 0: valid inputs; otherwise the first bad
+    one, as ``collide_pair``'s, with ``value`` the offending number. The 3-tuples are NaN unless
+    ``witness``.
     """
+    rtol, atol, eps, ortho_tol_a, ortho_tol_b, max_magnitude = (
+        params[0], params[1], params[2], params[3], params[4], params[5]
+    )  # fmt: skip
     nan = math.nan
     none = (nan, nan, nan)
     problem, val = pair_problem(Pa, Ra, Pb, Rb, ortho_tol_a, ortho_tol_b, max_magnitude)
