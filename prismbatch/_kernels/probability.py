@@ -224,7 +224,7 @@ def _count_loop(
                 rot_a[t, i, j] = rot_a0[q, i, j]
         inv_a = frame_inverse(rot_a[t])  # a stays put under six-component noise
         count, top, s1, s2, s3 = 0, -math.inf, 0.0, 0.0, 0.0
-        top_w, inv_top = 0.0, math.inf  # exp(top) and exp(-top) while top >= -600
+        top_w, inv_top = 0.0, math.inf  # exp(top), exp(-top): finite wherever a linear weight w <= top_w uses them
         bad[t] = -1
         for s in range(task_count[t]):
             state = sample_state(keys[q], np.uint64(task_start[t] + s))
