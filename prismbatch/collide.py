@@ -429,18 +429,11 @@ class Collider:
         cost 0.79 µs of a 3.8 µs one-pair query, this 0.58 µs)."""
         if self._a_per or self._b_per or quat_order is not None:
             return False
-        if not (type(pos_a) is type(rot_a) is type(pos_b) is type(rot_b) is np.ndarray):
-            return False
-        dt = self.dtype
         return (
-            pos_a.shape == (3,)
-            and pos_b.shape == (3,)
-            and rot_a.shape == (3, 3)
-            and rot_b.shape == (3, 3)
-            and pos_a.dtype == dt
-            and rot_a.dtype == dt
-            and pos_b.dtype == dt
-            and rot_b.dtype == dt
+            type(pos_a) is type(rot_a) is type(pos_b) is type(rot_b) is np.ndarray
+            and pos_a.shape == pos_b.shape == (3,)
+            and rot_a.shape == rot_b.shape == (3, 3)
+            and pos_a.dtype == rot_a.dtype == pos_b.dtype == rot_b.dtype == self.dtype
         )
 
     def _ortho_tol(self, rot):
