@@ -11,7 +11,7 @@ from ._kernels import batch as _batch
 from ._kernels.jit import first_call
 from ._kernels.projection import CASES
 from .checks import check_flag, real_scalar
-from .config import MAX_RTOL, SUPPORTED_RANGE
+from .config import DEFAULT_RTOL, MAX_RTOL, SUPPORTED_RANGE
 from .poses import (
     as_pose,
     common_batch_size,
@@ -29,51 +29,8 @@ __all__ = [
     "CollisionResult",
     "PairResult",
     "CASES",
-    "DEFAULT_RTOL",
-    "pair_scale_tolerance",
     "collider_for",
 ]
-
-#: Default relative tolerance per dtype. The absolute tolerance of a pair is
-#: ``atol + rtol * (R_a + R_b + |c_b - c_a|) + 4 eps (|c_a| + |c_b|) + 8 eps (|k_a|_1 + |k_b|_1)``
-#: (bounding radii of the end faces about their centres, the distance between the
-#: centres, and rounding floors for positions far from the world origin and for
-#: end faces far from their own local origins, k the centres in the local frames).
-DEFAULT_RTOL = {np.dtype(np.float64): 1e-9, np.dtype(np.float32): 1e-5}
-
-
-def pair_scale_tolerance(shape_a, shape_b, pos_a, rot_a, pos_b, rot_b, *, rtol=None, atol=0.0, dtype=np.float64):
-    """Scene scale and touching tolerance of each pair, as the kernels compute them (NumPy).
-
-    ``S = R_a + R_b + |c_b - c_a|`` and
-    ``tol = atol + rtol S + 4 eps (|c_a| + |c_b|) + 8 eps (|k_a|_1 + |k_b|_1)``
-    (end-face radii about the area centroids, centroids c in world coordinates and k in
-    the prisms' local frames, eps of ``dtype``); for reports and references that need the
-    kernels' tolerance outside them.
-
-    Parameters
-    ----------
-    shape_a, shape_b : Prism
-    pos_a, pos_b : numpy.ndarray, shape (N, 3)
-    rot_a, rot_b : numpy.ndarray, shape (N, 3, 3)
-    rtol : float, optional
-        Default :data:`DEFAULT_RTOL` of ``dtype``.
-    atol : float, optional
-    dtype : numpy dtype, optional
-
-    Returns
-    -------
-    S, tol : numpy.ndarray, shape (N,)
-    """
-    dt = np.dtype(dtype)
-    rtol = DEFAULT_RTOL[dt] if rtol is None else rtol
-    eps = float(np.finfo(dt).eps)
-    ca = pos_a + rot_a[:, :, :2] @ shape_a.centre
-    cb = pos_b + rot_b[:, :, :2] @ shape_b.centre
-    S = shape_a.radius + shape_b.radius + np.linalg.norm(cb - ca, axis=1)
-    local = np.abs(shape_a.centre).sum() + np.abs(shape_b.centre).sum()
-    tol = atol + rtol * S + eps * (4 * (np.linalg.norm(ca, axis=1) + np.linalg.norm(cb, axis=1)) + 8 * local)
-    return S, tol
 
 
 @dataclass(frozen=True)

@@ -4,6 +4,15 @@ Tolerances and thresholds are named here and documented once; the modules
 that use them import them from here.
 """
 
+import numpy as np
+
+#: Default relative tolerance per dtype. The absolute tolerance of a pair is
+#: ``atol + rtol * (R_a + R_b + |c_b - c_a|) + 4 eps (|c_a| + |c_b|) + 8 eps (|k_a|_1 + |k_b|_1)``
+#: (bounding radii of the end faces about their centres, the distance between the
+#: centres, and rounding floors for positions far from the world origin and for
+#: end faces far from their own local origins, k the centres in the local frames).
+DEFAULT_RTOL = {np.dtype(np.float64): 1e-9, np.dtype(np.float32): 1e-5}
+
 #: Largest magnitude accepted for a position coordinate or a polygon's centre
 #: (in the prism's local frame), and largest polygon radius. Inside this range
 #: every product the kernels form stays finite (squares up to ~1e202), so the

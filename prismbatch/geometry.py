@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .config import DEFAULT_RTOL
+
 __all__ = [
     "AXIS_DOWN",
     "signed_area",
@@ -20,6 +22,7 @@ __all__ = [
     "convex_hull",
     "halfplanes",
     "point_in_prism_residual",
+    "pair_scale_tolerance",
 ]
 
 #: a's orientation in the paper's scene: local axes x, -y, -z (axis d_a = [0, 0, -1], body below).
@@ -172,3 +175,37 @@ def convex_hull(points) -> np.ndarray:
 
     lower, upper = chain(pts), chain(pts[::-1])
     return np.array(lower[:-1] + upper[:-1])
+
+
+def pair_scale_tolerance(shape_a, shape_b, pos_a, rot_a, pos_b, rot_b, *, rtol=None, atol=0.0, dtype=np.float64):
+    """Scene scale and touching tolerance of each pair, as the kernels compute them (NumPy).
+
+    ``S = R_a + R_b + |c_b - c_a|`` and
+    ``tol = atol + rtol S + 4 eps (|c_a| + |c_b|) + 8 eps (|k_a|_1 + |k_b|_1)``
+    (end-face radii about the area centroids, centroids c in world coordinates and k in
+    the prisms' local frames, eps of ``dtype``); for reports and references that need the
+    kernels' tolerance outside them.
+
+    Parameters
+    ----------
+    shape_a, shape_b : Prism
+    pos_a, pos_b : numpy.ndarray, shape (N, 3)
+    rot_a, rot_b : numpy.ndarray, shape (N, 3, 3)
+    rtol : float, optional
+        Default :data:`~prismbatch.config.DEFAULT_RTOL` of ``dtype``.
+    atol : float, optional
+    dtype : numpy dtype, optional
+
+    Returns
+    -------
+    S, tol : numpy.ndarray, shape (N,)
+    """
+    dt = np.dtype(dtype)
+    rtol = DEFAULT_RTOL[dt] if rtol is None else rtol
+    eps = float(np.finfo(dt).eps)
+    ca = pos_a + rot_a[:, :, :2] @ shape_a.centre
+    cb = pos_b + rot_b[:, :, :2] @ shape_b.centre
+    S = shape_a.radius + shape_b.radius + np.linalg.norm(cb - ca, axis=1)
+    local = np.abs(shape_a.centre).sum() + np.abs(shape_b.centre).sum()
+    tol = atol + rtol * S + eps * (4 * (np.linalg.norm(ca, axis=1) + np.linalg.norm(cb, axis=1)) + 8 * local)
+    return S, tol

@@ -77,7 +77,7 @@ def lp_trust_band(tol, S):
     """Half-width of the touching band in which the LP margin decides nothing: ``max(tol, LP_TRUST_RTOL * S)``.
 
     ``tol`` is prismbatch's pair tolerance and ``S`` the scene scale
-    (:func:`prismbatch.collide.pair_scale_tolerance`); outside the band the
+    (:func:`prismbatch.geometry.pair_scale_tolerance`); outside the band the
     LP's sign is the exact answer.
     """
     return np.maximum(tol, LP_TRUST_RTOL * np.asarray(S))

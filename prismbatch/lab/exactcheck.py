@@ -21,7 +21,7 @@ from multiprocessing import get_context
 
 import numpy as np
 
-from ..collide import pair_scale_tolerance
+from ..geometry import pair_scale_tolerance
 from ..shapes import Prism
 from .families import FAMILIES, collide_family, make_family
 from .report import write_csv, write_json, write_text

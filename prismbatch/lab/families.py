@@ -20,8 +20,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..collide import pair_scale_tolerance
-from ..geometry import convex_hull
+from ..geometry import convex_hull, pair_scale_tolerance
 from ..sampling import random_rotations
 from ..shapes import Prism
 from .exact_gap import exact_dot

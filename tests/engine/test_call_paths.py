@@ -88,7 +88,7 @@ def test_near_touching_pairs_with_a_known_gap(name, seed):
     The placement rounds positions by about eps |p|; pairs whose gap lies within
     that (times 16) of tol or 2 tol are left out.
     """
-    from prismbatch.collide import pair_scale_tolerance
+    from prismbatch.geometry import pair_scale_tolerance
     from prismbatch.lab.families import collide_family
 
     ps = make_family(name, 64, seed)

@@ -23,8 +23,8 @@ from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 import prismbatch as pb
-from prismbatch.collide import pair_scale_tolerance
 from prismbatch.distance import AXES_DEPTH, EPA_STOPPED, PENETRATING, SEPARATED, TOUCHING, DistanceResult, distance
+from prismbatch.geometry import pair_scale_tolerance
 from prismbatch.lab.distance_ref import Body, gap_features, gap_qp, residual, sat_separation, signed_distance_of
 from prismbatch.sampling import free_poses
 

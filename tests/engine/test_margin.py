@@ -17,7 +17,7 @@ from scipy.spatial.transform import Rotation
 
 import prismbatch as pb
 from prismbatch._kernels import margin as margin_kernels
-from prismbatch.collide import DEFAULT_RTOL
+from prismbatch.config import DEFAULT_RTOL
 from prismbatch.distance import distance
 from prismbatch.lab.distance_ref import signed_distance_reference
 

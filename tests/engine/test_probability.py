@@ -18,7 +18,7 @@ import prismbatch as pb
 from prismbatch._kernels.probability import poses_usable, sample_serial
 from prismbatch._kernels.streams import ZIGGURAT
 from prismbatch._kernels.vec3 import rodrigues_coefficients
-from prismbatch.collide import pair_scale_tolerance
+from prismbatch.geometry import pair_scale_tolerance
 from prismbatch.importance import DEFENSIVE, SPREAD, centres, design_points, design_starts, hall_interval
 from prismbatch.probability import EXACT, IMPORTANCE, PLAIN, _Run, collision_probability
 

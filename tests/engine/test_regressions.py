@@ -12,7 +12,7 @@ import pytest
 
 import prismbatch as pb
 from prismbatch._kernels.planar import extreme_vertex
-from prismbatch.collide import pair_scale_tolerance
+from prismbatch.geometry import pair_scale_tolerance
 
 from reference import margin_lp, point_in_prism_residual
 

@@ -9,7 +9,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import prismbatch as pb
-from prismbatch.collide import pair_scale_tolerance
+from prismbatch.geometry import pair_scale_tolerance
 from prismbatch.motion import CLEAR, CONTACT, UNDECIDED, time_of_impact
 from prismbatch.sampling import free_poses
 

@@ -124,7 +124,7 @@ def test_bad_replay_files_raise(tmp_path):
 
 
 def test_pair_scale_tolerance_matches_the_kernels_tolerance():
-    from prismbatch.collide import pair_scale_tolerance
+    from prismbatch.geometry import pair_scale_tolerance
 
     pairs = _pairs()
     for dtype in (np.float64, np.float32):

@@ -12,7 +12,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ...collide import DEFAULT_RTOL
+from ...config import DEFAULT_RTOL
 from ...shapes import Prism, PrismSet
 from ..exact import lp_trust_band, margin_lp
 from .certificates import EPS64, contact_certified, plane_certificate

@@ -10,7 +10,7 @@ import time
 
 import numpy as np
 
-from ...collide import DEFAULT_RTOL
+from ...config import DEFAULT_RTOL
 from ..report import progress as progress_bar
 from ..report import run_metadata
 from .evaluate import margins, run_one, shape_of

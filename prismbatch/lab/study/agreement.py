@@ -6,7 +6,7 @@ import importlib.util
 
 import numpy as np
 
-from ...collide import pair_scale_tolerance
+from ...geometry import pair_scale_tolerance
 from ..casegen import EXACT_CASES
 
 

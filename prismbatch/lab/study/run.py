@@ -11,7 +11,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ...collide import DEFAULT_RTOL, Collider
+from ...collide import Collider
+from ...config import DEFAULT_RTOL
 from ...shapes import Prism
 from ..casegen import CASE_NUMBERS, case_poses
 from ..checkpoint import Checkpoint, Interrupted, run_unit

@@ -10,7 +10,8 @@ import time
 
 import numpy as np
 
-from ...collide import Collider, pair_scale_tolerance
+from ...collide import Collider
+from ...geometry import pair_scale_tolerance
 from ...shapes import Prism
 from ..exact import lp_trust_band
 from .arbitrate import Verdicts, arbitrate, check_standins, make_records

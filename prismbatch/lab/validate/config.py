@@ -9,8 +9,7 @@ import math
 
 import numpy as np
 
-from ...collide import DEFAULT_RTOL
-from ...config import LP_TRUST_RTOL
+from ...config import DEFAULT_RTOL, LP_TRUST_RTOL
 from ..checks import is_int
 
 #: Pairs of the distance section when not given: at most this many (and at most n_pairs).

@@ -14,7 +14,8 @@ import time
 
 import numpy as np
 
-from ...collide import Collider, pair_scale_tolerance
+from ...collide import Collider
+from ...geometry import pair_scale_tolerance
 from .generate import make_shape
 
 #: spawn_key[0] of the distance blocks (distributions use 0, 1, 2, ...).

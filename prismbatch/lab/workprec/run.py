@@ -14,7 +14,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ...collide import DEFAULT_RTOL, Collider, pair_scale_tolerance
+from ...collide import Collider
+from ...config import DEFAULT_RTOL
+from ...geometry import pair_scale_tolerance
 from ...shapes import Prism
 from ..checkpoint import Checkpoint, Interrupted, run_unit
 from ..checks import check_int, check_positive, check_vertex_counts
