@@ -481,6 +481,12 @@ def pair_params(rtol, atol, eps, ortho_tol_a, ortho_tol_b, max_magnitude):
     return np.array([rtol, atol, eps, ortho_tol_a, ortho_tol_b, max_magnitude], dtype=np.float64)
 
 
+@jit(inline="always")
+def pair_scalars(params):
+    """The six scalars of :func:`pair_params`, in its order, inside a kernel."""
+    return params[0], params[1], params[2], params[3], params[4], params[5]
+
+
 def _collide_pair(a_floats, a_ints, b_floats, b_ints, Pa, Ra, Pb, Rb, params, contact):
     """One pair, with its input checks compiled in (the low-latency path).
 
@@ -490,9 +496,7 @@ def _collide_pair(a_floats, a_ints, b_floats, b_ints, Pa, Ra, Pb, Rb, params, co
     inputs are valid; otherwise it names the first bad input (see collide._pair_problem) and
     ``value`` gives the offending number (``contact`` is then not written).
     """
-    rtol, atol, eps, ortho_tol_a, ortho_tol_b, max_magnitude = (
-        params[0], params[1], params[2], params[3], params[4], params[5]
-    )  # fmt: skip
+    rtol, atol, eps, ortho_tol_a, ortho_tol_b, max_magnitude = pair_scalars(params)
     problem, val = pair_problem(Pa, Ra, Pb, Rb, ortho_tol_a, ortho_tol_b, max_magnitude)
     if problem:
         return problem, val, False, 0

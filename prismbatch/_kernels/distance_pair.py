@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 
-from .batch import pair_problem, unpack
+from .batch import pair_problem, pair_scalars, unpack
 from .distance import EPA_ROOM, block_of, pair_distance_any_room, signed_status, workspace
 from .jit import per_dtype
 
@@ -32,9 +32,7 @@ def _distance_pair(
     one, as ``collide_pair``'s, with ``value`` the offending number. The 3-tuples are NaN unless
     ``witness``.
     """
-    rtol, atol, eps, ortho_tol_a, ortho_tol_b, max_magnitude = (
-        params[0], params[1], params[2], params[3], params[4], params[5]
-    )  # fmt: skip
+    rtol, atol, eps, ortho_tol_a, ortho_tol_b, max_magnitude = pair_scalars(params)
     nan = math.nan
     none = (nan, nan, nan)
     problem, val = pair_problem(Pa, Ra, Pb, Rb, ortho_tol_a, ortho_tol_b, max_magnitude)

@@ -24,6 +24,18 @@ from .jit import jit
 from .planar import extreme_vertex
 
 
+@jit(inline="always")
+def normal_to_world(inv, ux, uy, uz):
+    """A normal (ux, uy, uz) of a's frame in world axes: through the transpose of ``inv``, a's exact
+    inverse (:func:`~.batch.frame_inverse`), as a normal must go (points go through Ra = inv^-1). The
+    two differ by Ra's departure from orthonormality, which the input checks allow up to 1e-9."""
+    return (
+        inv[0] * ux + inv[3] * uy + inv[6] * uz,
+        inv[1] * ux + inv[4] * uy + inv[7] * uz,
+        inv[2] * ux + inv[5] * uy + inv[8] * uz,
+    )
+
+
 @jit(error_model="numpy")
 def parallel_overlap(P, ix, Ra, Rb, ox, oy, oz, dx, dy, dz):
     """``(depth, normal, point_a)`` in world coordinates for exactly parallel, same-way axes.
@@ -78,9 +90,7 @@ def parallel_overlap(P, ix, Ra, Rb, ox, oy, oz, dx, dy, dz):
     if on_b:  # the point of b's edge; a's point lies the depth behind it
         qx, qy = qx + best * nx, qy + best * ny
     z = max(0.0, pz)  # both bodies hold every height from here on
-    gx = inv[0] * nx + inv[3] * ny  # a normal: through the inverse's transpose (see tilted_overlap)
-    gy = inv[1] * nx + inv[4] * ny
-    gz = inv[2] * nx + inv[5] * ny
+    gx, gy, gz = normal_to_world(inv, nx, ny, 0.0)
     gn = math.sqrt(gx * gx + gy * gy + gz * gz)
     point = (
         ox + Ra[0, 0] * qx + Ra[0, 1] * qy + Ra[0, 2] * z,
@@ -207,10 +217,6 @@ def tilted_overlap(P, ix, Ra, Rb, dx, dy, dz, ex, ey, ez):
         best = _better(P, ix, rel, fx, fy, fz, -qy, qx, 0.0, ACROSS, best)  # d_a x b's edge, both ways
         best = _better(P, ix, rel, fx, fy, fz, qy, -qx, 0.0, ACROSS, best)
     v, ux, uy, uz = best
-    # a normal maps to world axes by the inverse's transpose (points map by Ra = inv^-1): the two
-    # differ by Ra's departure from orthonormality, which the input checks allow up to 1e-9
-    nx = inv[0] * ux + inv[3] * uy + inv[6] * uz
-    ny = inv[1] * ux + inv[4] * uy + inv[7] * uz
-    nz = inv[2] * ux + inv[5] * uy + inv[8] * uz
+    nx, ny, nz = normal_to_world(inv, ux, uy, uz)
     nn = math.sqrt(nx * nx + ny * ny + nz * nz)
     return v, (nx / nn, ny / nn, nz / nn)

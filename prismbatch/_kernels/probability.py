@@ -102,6 +102,16 @@ def _draw_proposal(state, z, t, q, j0, j1, mu, cum, active, spread, defensive):
     return state
 
 
+@jit(inline="always")
+def _active_norm2(z, t, q, active):
+    """``|z[t]|^2`` over query q's active noise components."""
+    zz = 0.0
+    for c in range(z.shape[1]):
+        if active[q, c]:
+            zz += z[t, c] * z[t, c]
+    return zz
+
+
 @jit(inline="always", error_model="numpy")
 def _centre_exponent(z, t, q, j, mu, lpi, active, consts, zz):
     """``log(pi_j N(z; mu_j, S) / N(z; 0, I))`` of the draw ``z[t]`` (``zz = |z|^2`` over the active
@@ -122,10 +132,7 @@ def _weight(z, t, q, j0, j1, mu, lpi, active, consts):
     :func:`_log_weight` then gives. Only hits need it, so the loop forms it after the test.
     ``consts``: ``(log d, log(1 - d), 0.5 / spread^2, n_active log spread, d)``. One exponential
     a centre: the logarithm's form costs three transcendentals a hit, some 10 % of the loop."""
-    zz = 0.0
-    for c in range(z.shape[1]):
-        if active[q, c]:
-            zz += z[t, c] * z[t, c]
+    zz = _active_norm2(z, t, q, active)
     ratio = 0.0  # q(z) / phi(z) over the centres' part
     for j in range(j0, j1):
         e = _centre_exponent(z, t, q, j, mu, lpi, active, consts, zz)
@@ -141,10 +148,7 @@ def _log_weight(z, t, q, j0, j1, mu, lpi, active, consts):
     """``log(phi(z) / q(z))`` of the draw ``z[t]``, for weights of any size (see :func:`_weight`).
     The tests compare both with a NumPy form of the same formulas."""
     log_d, log_1md = consts[0], consts[1]
-    zz = 0.0
-    for c in range(z.shape[1]):
-        if active[q, c]:
-            zz += z[t, c] * z[t, c]
+    zz = _active_norm2(z, t, q, active)
     # log sum_j exp(e_j) in one pass (running maximum m, sum acc of exp(e_j - m)). A term below
     # exp(-60) of the largest is not added: it could not change acc >= 1 in double precision,
     # and skipping it saves its exponential.

@@ -152,12 +152,13 @@ def spawned_keys(seed, keys, child):
     seed_words = max(1, (int(seed).bit_length() + 31) // 32)
     calls = 16 + 4 * max(0, seed_words - 4)  # hashmix calls on the seed: 4 into the pool, 12 mixing it
     start = _INIT_A * pow(_MULT_A, calls, 1 << 32) & 0xFFFFFFFF
+    seed_pool = np.random.SeedSequence(seed).pool.astype(np.uint64)
     out = np.empty(len(keys), np.uint64)
     wide = keys > _MASK32  # keys of two words
     for group in (~wide, wide):
         k = keys[group]
         words = [k & _MASK32] + ([k >> np.uint64(32)] if group is wide else []) + [np.full(len(k), child, np.uint64)]
-        pool = np.tile(np.random.SeedSequence(seed).pool.astype(np.uint64), (len(k), 1))
+        pool = np.tile(seed_pool, (len(k), 1))
         const = start
         for w in words:
             for d in range(4):
