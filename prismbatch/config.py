@@ -40,7 +40,7 @@ MIN_RELATIVE_AREA = 1e-13
 #: the scene's own size, and finite).
 MAX_RTOL = 1.0
 
-#: Most vertices :meth:`Prism.regular` builds (memory: ~200 bytes a vertex
+#: Most vertices :meth:`Prism.regular` builds (memory: ~240 bytes a vertex
 #: once the kernels' tables are built).
 MAX_VERTICES = 10_000_000
 

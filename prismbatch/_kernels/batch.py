@@ -290,8 +290,8 @@ def _collide_loop(
     nra = rot_a.shape[0]
     npb = pos_b.shape[0]
     nrb = rot_b.shape[0]
-    nsa = a[7].shape[0]  # radii: one per prism
-    nsb = b[7].shape[0]
+    nsa = a_ints[0]  # the number of prisms (see pack)
+    nsb = b_ints[0]
     for ip in prange(n):
         # prange's index is unsigned; mixing it with int64 would give floats.
         i = np.int64(ip)
