@@ -37,18 +37,16 @@ import datetime as _dt
 import importlib.util
 import json
 import os
-import platform
 import subprocess
 import sys
-import tempfile
 import time
-from importlib import metadata
 from pathlib import Path
 
 import numpy as np
+from bench_floor import COLD_BATCHES, cold_compile
 
-from prismbatch.lab.report import fmt
-from prismbatch.lab.timing import cpu_snapshot, other_load, threads, timed_loops
+from prismbatch.lab.report import fmt, run_metadata
+from prismbatch.lab.timing import IdleWaiter, cpu_snapshot, other_load, stats, thread_use, threads, timed_loops
 from prismbatch.sampling import facing_poses, free_poses
 
 HERE = Path(__file__).resolve().parent
@@ -88,36 +86,11 @@ def time_repeats(fn, repeats, warmup=1):
 
 
 def summarize(walls, cpus, n_pairs):
-    """Per-pair statistics in microseconds."""
-    us = walls / n_pairs * 1e6
-    q1, med, q3 = np.percentile(us, [25, 50, 75])
-    return {
-        "median_us": float(med),
-        "min_us": float(us.min()),
-        "max_us": float(us.max()),
-        "q1_us": float(q1),
-        "q3_us": float(q3),
-        "repeats": int(len(us)),
-        "n_pairs": int(n_pairs),
-        # process CPU time / wall time: ~1 on one thread, ~k with k busy threads
-        "cpu_per_wall": float(np.sum(cpus) / max(np.sum(walls), 1e-12)),
-    }
-
-
-def thread_use(fn, min_seconds=0.4):
-    """Process CPU time / wall time of back-to-back calls of fn for >= min_seconds.
-
-    Per-repeat CPU times of millisecond calls are at the mercy of the kernel's
-    CPU-time accounting granularity, so thread use is measured on its own.
-    """
-    fn()
-    c0, t0 = time.process_time(), time.perf_counter()
-    while True:
-        fn()
-        t1 = time.perf_counter()
-        if t1 - t0 >= min_seconds:
-            break
-    return (time.process_time() - c0) / (t1 - t0)
+    """Per-pair statistics in microseconds, and process CPU time / wall time (~1 on one thread, ~k on k)."""
+    us = stats(np.asarray(walls) / n_pairs * 1e6)
+    out = {f"{k}_us": v for k, v in us.items()}
+    cpu_per_wall = float(np.sum(cpus) / max(np.sum(walls), 1e-12))
+    return {**out, "repeats": len(walls), "n_pairs": int(n_pairs), "cpu_per_wall": cpu_per_wall}
 
 
 # ---------------------------------------------------------------------------
@@ -310,101 +283,8 @@ def bench_cell(n, pose_name, args, all_threads, ref, log, waiter):
 
 
 # ---------------------------------------------------------------------------
-# first-call (compile) time, in fresh subprocesses
-# ---------------------------------------------------------------------------
-_FIRST_CALL_CODE = r"""
-import json, sys, time
-t0 = time.perf_counter()
-import numpy as np
-
-from prismbatch.sampling import facing_poses, free_poses
-import prismbatch as pb
-t_import = time.perf_counter() - t0
-parallel = sys.argv[1] == "parallel"
-rng = np.random.default_rng(0)
-a, b = pb.Prism.regular(36, 2.0), pb.Prism.regular(36, 2.5)
-pa = rng.uniform(-1, 1, (10, 3)); pb_ = rng.uniform(-1, 1, (10, 3))
-ra = np.broadcast_to(np.diag([1.0, -1.0, -1.0]), (10, 3, 3)); rb = np.broadcast_to(np.eye(3), (10, 3, 3))
-t = time.perf_counter(); pb.collide(a, b, pa, ra, pb_, rb, parallel=parallel); t1 = time.perf_counter() - t
-t = time.perf_counter(); pb.collide(a, b, pa, ra, pb_, rb, parallel=parallel); t2 = time.perf_counter() - t
-print(json.dumps({"import_s": t_import, "first_s": t1, "second_s": t2}))
-"""
-
-
-def _first_call(kind, cache_dir):
-    env = dict(os.environ, NUMBA_CACHE_DIR=str(cache_dir))
-    out = subprocess.run(
-        [sys.executable, "-c", _FIRST_CALL_CODE, kind],
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=900,
-        check=False,
-    )
-    if out.returncode != 0:
-        raise RuntimeError(f"first-call subprocess ({kind}) failed:\n{out.stderr[-2000:]}")
-    r = json.loads(out.stdout.strip().splitlines()[-1])
-    r["first_minus_second_s"] = r["first_s"] - r["second_s"]
-    return r
-
-
-def compile_times(log):
-    """Fresh cache dir per kernel kind (serial, parallel): cold, then warm."""
-    res = {}
-    for kind in ("serial", "parallel"):
-        with tempfile.TemporaryDirectory(prefix=f"pb_numba_cache_{kind}_") as d:
-            cold = _first_call(kind, d)
-            warm = _first_call(kind, d)
-        res[kind] = {"cold": cold, "cached": warm}
-        log(
-            f"  {kind}: cold first call {cold['first_minus_second_s']:.2f} s "
-            f"(minus 2nd call), cached {warm['first_minus_second_s']:.3f} s"
-        )
-    return res
-
-
-# ---------------------------------------------------------------------------
 # machine info and output
 # ---------------------------------------------------------------------------
-class IdleWaiter:
-    """Waits for other processes to leave the CPUs idle, within a total budget.
-
-    On a shared machine this keeps e.g. a concurrent test run from skewing the
-    numbers (an OpenMP region whose threads share a core with another process
-    can be several times slower than one thread).  ``budget`` seconds are
-    shared by the whole run; once spent, measurements proceed regardless.
-    """
-
-    def __init__(self, budget, log=None, threshold=0.25, window=2.0):
-        self.left = float(budget)
-        self.log = log
-        self.threshold = threshold
-        self.window = window
-
-    @property
-    def active(self):
-        return self.left > 0.0
-
-    def wait(self):
-        """Block until idle or the budget is spent; returns seconds waited."""
-        t0 = time.perf_counter()
-        warned = False
-        while self.left > 0.0:
-            s0 = cpu_snapshot()
-            time.sleep(self.window)
-            other = other_load(s0, cpu_snapshot())
-            self.left -= self.window
-            if other is None or other < self.threshold:
-                break
-            if self.log and not warned:
-                self.log(
-                    f"  waiting for other processes to go idle ({other:.2f} CPUs busy; "
-                    f"{max(self.left, 0):.0f} s of waiting budget left)..."
-                )
-                warned = True
-        return time.perf_counter() - t0
-
-
 def _loadavg():
     try:
         return float(os.getloadavg()[0])
@@ -412,58 +292,30 @@ def _loadavg():
         return None
 
 
-def _version(dist):
-    try:
-        return metadata.version(dist)
-    except metadata.PackageNotFoundError:
-        return None
-
-
 def machine_info():
+    """The run's machine and versions (:func:`prismbatch.lab.report.run_metadata`, flattened), Numba's
+    threading layer and the commit measured."""
     import numba
 
-    cpu = None
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    try:
-        commit = (
-            subprocess.run(
-                ["git", "-C", str(REPO), "rev-parse", "HEAD"], capture_output=True, text=True, check=False
-            ).stdout.strip()
-            or None
-        )
-        dirty = bool(
-            subprocess.run(
-                ["git", "-C", str(REPO), "status", "--porcelain", "--", "prismbatch"],
-                capture_output=True,
-                text=True,
-                check=False,
-            ).stdout.strip()
-        )
-    except OSError:
-        commit, dirty = None, None
+    meta = run_metadata()
     try:
         threading_layer = numba.threading_layer()
     except ValueError:
         threading_layer = None
+    git = ["git", "-C", str(REPO)]
+    try:
+        commit = subprocess.run([*git, "rev-parse", "HEAD"], capture_output=True, text=True).stdout.strip() or None
+        status = subprocess.run([*git, "status", "--porcelain", "--", "prismbatch"], capture_output=True, text=True)
+        dirty = bool(status.stdout.strip())
+    except OSError:
+        commit, dirty = None, None
     return {
-        "cpu_model": cpu or platform.processor() or None,
-        "logical_cpus": os.cpu_count(),
-        "affinity_cpus": len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else None,
-        "numba_threads": numba.get_num_threads(),
+        **meta["versions"],
+        "cpu_model": meta["machine"]["cpu"],
+        "logical_cpus": meta["machine"]["cpu_count"],
+        "platform": meta["machine"]["platform"],
+        "numba_threads": meta["machine"]["numba_threads"],
         "numba_threading_layer": threading_layer,
-        "python": platform.python_version(),
-        "platform": platform.platform(),
-        "numpy": np.__version__,
-        "numba": numba.__version__,
-        "python-fcl": _version("python-fcl"),
-        "coal": _version("coal"),
-        "prismbatch": _version("prismbatch"),
         "git_commit": commit,
         "prismbatch_worktree_dirty": dirty,
         "date_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
@@ -594,13 +446,13 @@ def markdown_report(results, infos, meta, comp):
             f"load average at start {meta['load_avg_1min_at_start']}).\n"
         )
     if comp:
-        L.append("### First call (Numba compile), fresh subprocess, 10 pairs\n")
-        L.append("| kernel | cold: 1st − 2nd call (s) | cached: 1st − 2nd call (s) | import (s) |")
-        L.append("|:---|---:|---:|---:|")
+        L.append("### First call (Numba compile), fresh subprocess (`bench_floor.cold_compile`)\n")
+        L.append("| kernel | pairs | cold: first call (s) | cached: first call (s) | import (s) |")
+        L.append("|:---|---:|---:|---:|---:|")
         for kind, r in comp.items():
             L.append(
-                f"| {kind} | {r['cold']['first_minus_second_s']:.2f} "
-                f"| {r['cached']['first_minus_second_s']:.3f} | {r['cold']['import_s']:.2f} |"
+                f"| {kind} | {COLD_BATCHES[kind]} | {r['cold']['first_call_s']:.2f} "
+                f"| {r['cached']['first_call_s']:.3f} | {r['cold']['import_s']:.2f} |"
             )
         L.append("")
     return "\n".join(L)
@@ -713,7 +565,10 @@ def main(argv=None):
     if not args.skip_compile:
         log("first-call compile times (fresh subprocesses)...")
         waiter.wait()
-        comp = compile_times(log)
+        comp = cold_compile()
+        for kind, r in comp.items():
+            cold, cached = r["cold"]["first_call_s"], r["cached"]["first_call_s"]
+            log(f"  {kind}: cold first call {cold:.2f} s, cached {cached:.3f} s")
 
     results, infos, repro = {}, {}, []
     for n in args.sizes:

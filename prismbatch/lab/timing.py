@@ -17,7 +17,18 @@ from contextlib import contextmanager
 
 import numpy as np
 
-__all__ = ["stats", "gc_paused", "timed_loops", "best_of", "seconds_of", "cpu_snapshot", "other_load", "threads"]
+__all__ = [
+    "stats",
+    "gc_paused",
+    "timed_loops",
+    "best_of",
+    "seconds_of",
+    "thread_use",
+    "cpu_snapshot",
+    "other_load",
+    "threads",
+    "IdleWaiter",
+]
 
 
 def stats(values):
@@ -124,3 +135,58 @@ def threads(k):
         yield numba.get_num_threads()
     finally:
         numba.set_num_threads(old)
+
+
+class IdleWaiter:
+    """Waits for other processes to leave the CPUs idle, within a total budget.
+
+    On a shared machine this keeps e.g. a concurrent test run from skewing the
+    numbers (an OpenMP region whose threads share a core with another process
+    can be several times slower than one thread).  ``budget`` seconds are
+    shared by the whole run; once spent, measurements proceed regardless.
+    """
+
+    def __init__(self, budget, log=None, threshold=0.25, window=2.0):
+        self.left = float(budget)
+        self.log = log
+        self.threshold = threshold
+        self.window = window
+
+    @property
+    def active(self):
+        return self.left > 0.0
+
+    def wait(self):
+        """Block until idle or the budget is spent; returns seconds waited."""
+        t0 = time.perf_counter()
+        warned = False
+        while self.left > 0.0:
+            s0 = cpu_snapshot()
+            time.sleep(self.window)
+            other = other_load(s0, cpu_snapshot())
+            self.left -= self.window
+            if other is None or other < self.threshold:
+                break
+            if self.log and not warned:
+                self.log(
+                    f"  waiting for other processes to go idle ({other:.2f} CPUs busy; "
+                    f"{max(self.left, 0):.0f} s of waiting budget left)..."
+                )
+                warned = True
+        return time.perf_counter() - t0
+
+
+def thread_use(fn, min_seconds=0.4):
+    """Process CPU time / wall time of back-to-back calls of fn for >= min_seconds.
+
+    Per-repeat CPU times of millisecond calls are at the mercy of the kernel's
+    CPU-time accounting granularity, so thread use is measured on its own.
+    """
+    fn()
+    c0, t0 = time.process_time(), time.perf_counter()
+    while True:
+        fn()
+        t1 = time.perf_counter()
+        if t1 - t0 >= min_seconds:
+            break
+    return (time.process_time() - c0) / (t1 - t0)

@@ -60,3 +60,18 @@ def test_stats_and_gc_paused():
     assert gc.isenabled()
     assert other_load((0.0, None, 0.0), (1.0, 5.0, 0.5)) is None
     assert other_load((0.0, 10.0, 1.0), (1.0, 11.5, 1.5)) == pytest.approx(1.0)
+
+
+def test_thread_use_is_cpu_time_over_wall_time_of_repeated_calls():
+    import time
+
+    from prismbatch.lab.timing import thread_use
+
+    def busy():  # one thread, all CPU: about 1
+        t = time.perf_counter()
+        while time.perf_counter() - t < 0.01:
+            pass
+
+    assert 0.5 < thread_use(busy, min_seconds=0.2) < 1.3
+    # sleeping calls use (almost) no CPU
+    assert thread_use(lambda: time.sleep(0.01), min_seconds=0.2) < 0.3
