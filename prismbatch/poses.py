@@ -74,6 +74,12 @@ def _out_dtype(dtype) -> np.dtype:
     return dt
 
 
+def _as_float(arr: np.ndarray) -> np.ndarray:
+    """``arr`` itself if it is float32 or float64 (the checks judge both in float64 without a copy:
+    a float64 copy of 10^7 float32 poses cost 1 GB and a third of a float32 call), else a float64 copy."""
+    return arr if arr.dtype in _OUT_DTYPES else np.asarray(arr, dtype=np.float64)
+
+
 def ortho_tolerance(input_dtype, compute_dtype) -> float:
     """Tolerance on max ``|R^T R - I|`` for rotation matrices: the one rule.
 
@@ -125,8 +131,8 @@ def _check_positions(p64: np.ndarray, name: str, batched: bool, what: str = "", 
     The range is :data:`~prismbatch.config.SUPPORTED_RANGE` of the compute
     ``dtype``. One pass: ``|x| <= limit`` is False for NaN too.
     """
-    limit = SUPPORTED_RANGE[np.dtype(dtype).name][1]
-    ok = np.abs(p64) <= limit
+    limit = np.float64(SUPPORTED_RANGE[np.dtype(dtype).name][1])  # (a NumPy float64: float32 coordinates
+    ok = np.abs(p64) <= limit  # are compared in float64, as their float64 copies were)
     if ok.all():
         return
     rows = ok.reshape(p64.shape[0], -1).all(axis=1) if batched else ok.reshape(1, -1).all(axis=1)
@@ -158,7 +164,8 @@ def rotation_message(where: str, kind: int, value: float, tol: float) -> str:
 def _check_rotation_matrices(R64, name: str, tol: float, batched: bool, what: str = "", parallel=None) -> None:
     """Finite, orthonormal within ``tol``, and proper (det > 0).
 
-    ``R64`` is float64 of shape (N, 3, 3) if ``batched`` else (3, 3). ``parallel`` as for
+    ``R64`` is float64 or float32 (judged in float64 arithmetic) of shape (N, 3, 3) if ``batched``
+    else (3, 3). ``parallel`` as for
     :func:`~prismbatch.collide`: a large batch is checked in chunks on Numba's threads (a
     serial check held two threads to 1.65x one thread on 10^6 pairs).
     """
@@ -314,9 +321,9 @@ def as_rotations(rot, *, quat_order=None, name="rot", dtype=np.float64, parallel
         raise ValueError(f"{name} has shape {shape}; expected {_ROT_SHAPES}{hint}")
 
     batched = arr.ndim == 3
-    R64 = np.asarray(arr, dtype=np.float64)
-    _check_rotation_matrices(R64, name, ortho_tolerance(arr.dtype, out_dt), batched, parallel=parallel)
-    return np.ascontiguousarray(R64, dtype=out_dt)
+    R = _as_float(arr)
+    _check_rotation_matrices(R, name, ortho_tolerance(arr.dtype, out_dt), batched, parallel=parallel)
+    return np.ascontiguousarray(R, dtype=out_dt)
 
 
 def as_positions(pos, *, name="pos", dtype=np.float64) -> np.ndarray:
@@ -350,9 +357,9 @@ def as_positions(pos, *, name="pos", dtype=np.float64) -> np.ndarray:
     arr = as_real_array(pos, name)
     if arr.ndim not in (1, 2) or arr.shape[-1] != 3:
         raise ValueError(f"{name} has shape {arr.shape}; expected (3,) or (N, 3)")
-    p64 = np.asarray(arr, dtype=np.float64)
-    _check_positions(p64, name, arr.ndim == 2, dtype=out_dt)
-    return np.ascontiguousarray(p64, dtype=out_dt)
+    p = _as_float(arr)
+    _check_positions(p, name, arr.ndim == 2, dtype=out_dt)
+    return np.ascontiguousarray(p, dtype=out_dt)
 
 
 def as_pose(pos, rot=None, *, quat_order=None, name="a", dtype=np.float64, parallel=None):
@@ -413,7 +420,7 @@ def as_pose(pos, rot=None, *, quat_order=None, name="a", dtype=np.float64, paral
             f"(pass the rotation as rot=... to give a position separately)"
         )
     batched = arr.ndim == 3
-    T64 = np.asarray(arr, dtype=np.float64)
+    T64 = _as_float(arr)
     _check_finite(T64, tname, batched)
     _check_positions(T64[..., :3, 3], tname, batched, what=" translation", dtype=out_dt)
     Tb = T64 if batched else T64[None]

@@ -2,6 +2,7 @@
 
 import math
 
+import numpy as np
 from numba import prange
 
 from .jit import jit
@@ -12,11 +13,13 @@ def _rotation_ok(R, tol):
     """R finite, orthonormal within ``tol`` (every ``|R^T R - I|`` entry) and proper (det > 0).
 
     Branch-free over the six distinct entries of the symmetric ``R^T R``: a NaN or inf makes a
-    comparison False, so non-finite matrices fail too.
+    comparison False, so non-finite matrices fail too. In float64 whatever R's dtype (float32
+    entries convert exactly), so float32 poses are judged as their float64 copies were.
     """
-    a0, a1, a2 = R[0, 0], R[1, 0], R[2, 0]
-    b0, b1, b2 = R[0, 1], R[1, 1], R[2, 1]
-    c0, c1, c2 = R[0, 2], R[1, 2], R[2, 2]
+    f = np.float64
+    a0, a1, a2 = f(R[0, 0]), f(R[1, 0]), f(R[2, 0])
+    b0, b1, b2 = f(R[0, 1]), f(R[1, 1]), f(R[2, 1])
+    c0, c1, c2 = f(R[0, 2]), f(R[1, 2]), f(R[2, 2])
     ok = abs(a0 * a0 + a1 * a1 + a2 * a2 - 1.0) <= tol
     ok &= abs(b0 * b0 + b1 * b1 + b2 * b2 - 1.0) <= tol
     ok &= abs(c0 * c0 + c1 * c1 + c2 * c2 - 1.0) <= tol
@@ -30,7 +33,8 @@ def _rotation_ok(R, tol):
 @jit
 def _rotation_problem(R, tol):
     """(kind, value) of a matrix :func:`_rotation_ok` rejects: 1 non-finite, 2 not orthonormal (the
-    largest error), 3 a reflection (det)."""
+    largest error), 3 a reflection (det); in float64, as there."""
+    f = np.float64
     for j in range(3):
         for k in range(3):
             if not math.isfinite(R[j, k]):
@@ -38,16 +42,16 @@ def _rotation_problem(R, tol):
     err = 0.0
     for j in range(3):
         for k in range(3):
-            g = R[0, j] * R[0, k] + R[1, j] * R[1, k] + R[2, j] * R[2, k]
+            g = f(R[0, j]) * f(R[0, k]) + f(R[1, j]) * f(R[1, k]) + f(R[2, j]) * f(R[2, k])
             if j == k:
                 g -= 1.0
             err = max(err, abs(g))
     if err > tol:
         return 2, err
     det = (
-        R[0, 0] * (R[1, 1] * R[2, 2] - R[1, 2] * R[2, 1])
-        - R[0, 1] * (R[1, 0] * R[2, 2] - R[1, 2] * R[2, 0])
-        + R[0, 2] * (R[1, 0] * R[2, 1] - R[1, 1] * R[2, 0])
+        f(R[0, 0]) * (f(R[1, 1]) * f(R[2, 2]) - f(R[1, 2]) * f(R[2, 1]))
+        - f(R[0, 1]) * (f(R[1, 0]) * f(R[2, 2]) - f(R[1, 2]) * f(R[2, 0]))
+        + f(R[0, 2]) * (f(R[1, 0]) * f(R[2, 1]) - f(R[1, 1]) * f(R[2, 0]))
     )
     return 3, det
 
