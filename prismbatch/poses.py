@@ -114,30 +114,31 @@ def ortho_tolerance(input_dtype, compute_dtype) -> float:
     return max(floor, ORTHO_EPS_FACTOR * float(np.finfo(dt).eps))
 
 
-def _check_finite(a64: np.ndarray, name: str, batched: bool, what: str = "") -> None:
+def _check_finite(a: np.ndarray, name: str, batched: bool, what: str = "") -> None:
     """Raise naming the first pose whose entries are not all finite."""
     if batched:
-        bad = ~np.isfinite(a64.reshape(a64.shape[0], -1) if a64.size else a64.reshape(0, 1)).all(axis=1)
+        bad = ~np.isfinite(a.reshape(a.shape[0], -1) if a.size else a.reshape(0, 1)).all(axis=1)
         if bad.any():
             i = int(np.flatnonzero(bad)[0])
             raise ValueError(f"{indexed_name(name, i)}{what} contains non-finite values (NaN or inf)")
-    elif not np.isfinite(a64).all():
+    elif not np.isfinite(a).all():
         raise ValueError(f"{name}{what} contains non-finite values (NaN or inf)")
 
 
-def _check_positions(p64: np.ndarray, name: str, batched: bool, what: str = "", dtype=np.float64) -> None:
+def _check_positions(p: np.ndarray, name: str, batched: bool, what: str = "", dtype=np.float64) -> None:
     """Raise naming the first position with a coordinate NaN, inf or beyond the supported range.
 
     The range is :data:`~prismbatch.config.SUPPORTED_RANGE` of the compute
     ``dtype``. One pass: ``|x| <= limit`` is False for NaN too.
     """
-    limit = np.float64(SUPPORTED_RANGE[np.dtype(dtype).name][1])  # (a NumPy float64: float32 coordinates
-    ok = np.abs(p64) <= limit  # are compared in float64, as their float64 copies were)
+    # A NumPy float64 limit: float32 coordinates are compared in float64, as their float64 copies were.
+    limit = np.float64(SUPPORTED_RANGE[np.dtype(dtype).name][1])
+    ok = np.abs(p) <= limit
     if ok.all():
         return
-    rows = ok.reshape(p64.shape[0], -1).all(axis=1) if batched else ok.reshape(1, -1).all(axis=1)
+    rows = ok.reshape(p.shape[0], -1).all(axis=1) if batched else ok.reshape(1, -1).all(axis=1)
     i = int(np.flatnonzero(~rows)[0])
-    v = float(np.ravel(p64[i] if batched else p64)[np.flatnonzero(~np.ravel(ok[i] if batched else ok))[0]])
+    v = float(np.ravel(p[i] if batched else p)[np.flatnonzero(~np.ravel(ok[i] if batched else ok))[0]])
     raise ValueError(position_message(indexed_name(name, i if batched else None) + what, v, limit))
 
 
@@ -161,15 +162,15 @@ def rotation_message(where: str, kind: int, value: float, tol: float) -> str:
     return f"{where} is a reflection (det = {value:.6g}); a rotation must have det = +1"
 
 
-def _check_rotation_matrices(R64, name: str, tol: float, batched: bool, what: str = "", parallel=None) -> None:
+def _check_rotation_matrices(R, name: str, tol: float, batched: bool, what: str = "", parallel=None) -> None:
     """Finite, orthonormal within ``tol``, and proper (det > 0).
 
-    ``R64`` is float64 or float32 (judged in float64 arithmetic) of shape (N, 3, 3) if ``batched``
+    ``R`` is float64 or float32 (judged in float64 arithmetic) of shape (N, 3, 3) if ``batched``
     else (3, 3). ``parallel`` as for
     :func:`~prismbatch.collide`: a large batch is checked in chunks on Numba's threads (a
     serial check held two threads to 1.65x one thread on 10^6 pairs).
     """
-    Rb = np.ascontiguousarray(R64 if batched else R64[None])
+    Rb = np.ascontiguousarray(R if batched else R[None])
     if Rb.shape[0] == 0:
         return
     if use_parallel(parallel, Rb.shape[0]):
@@ -420,10 +421,10 @@ def as_pose(pos, rot=None, *, quat_order=None, name="a", dtype=np.float64, paral
             f"(pass the rotation as rot=... to give a position separately)"
         )
     batched = arr.ndim == 3
-    T64 = _as_float(arr)
-    _check_finite(T64, tname, batched)
-    _check_positions(T64[..., :3, 3], tname, batched, what=" translation", dtype=out_dt)
-    Tb = T64 if batched else T64[None]
+    T = _as_float(arr)
+    _check_finite(T, tname, batched)
+    _check_positions(T[..., :3, 3], tname, batched, what=" translation", dtype=out_dt)
+    Tb = T if batched else T[None]
     last_row = np.array([0.0, 0.0, 0.0, 1.0])
     row_err = np.abs(Tb[:, 3, :] - last_row).max(axis=1, initial=0.0)
     bad = row_err > TRANSFORM_ROW_TOL
@@ -433,10 +434,10 @@ def as_pose(pos, rot=None, *, quat_order=None, name="a", dtype=np.float64, paral
             f"{indexed_name(tname, i if batched else None)} has last row "
             f"{Tb[i, 3, :].tolist()}; a homogeneous transform needs [0, 0, 0, 1]"
         )
-    R64 = T64[..., :3, :3]
-    _check_rotation_matrices(R64, tname, ortho_tolerance(arr.dtype, out_dt), batched, " rotation block", parallel)
-    p = np.ascontiguousarray(T64[..., :3, 3], dtype=out_dt)
-    R = np.ascontiguousarray(R64, dtype=out_dt)
+    R_block = T[..., :3, :3]
+    _check_rotation_matrices(R_block, tname, ortho_tolerance(arr.dtype, out_dt), batched, " rotation block", parallel)
+    p = np.ascontiguousarray(T[..., :3, 3], dtype=out_dt)
+    R = np.ascontiguousarray(R_block, dtype=out_dt)
     return p, R
 
 

@@ -103,6 +103,12 @@ def _draw_proposal(state, z, t, q, j0, j1, mu, cum, active, spread, defensive):
 
 
 @jit(inline="always")
+def _rescaled(s1, s2, s3, scale):
+    """The power sums of the weights (s1, s2, s3) after every weight is multiplied by ``scale``."""
+    return s1 * scale, s2 * scale * scale, s3 * scale * scale * scale
+
+
+@jit(inline="always")
 def _active_norm2(z, t, q, active):
     """``|z[t]|^2`` over query q's active noise components."""
     zz = 0.0
@@ -258,14 +264,14 @@ def _count_loop(
                 if w > 0.0:
                     if w > top_w:
                         scale = top_w / w
-                        s1, s2, s3 = s1 * scale, s2 * scale * scale, s3 * scale * scale * scale
+                        s1, s2, s3 = _rescaled(s1, s2, s3, scale)
                         top, top_w, inv_top = math.log(w), w, 1.0 / w
                     e = w * inv_top
                 else:  # below exp(-600): in logarithms
                     lw = _log_weight(z, t, q, j0, j1, mu, lpi, active, consts)
                     if lw > top:
                         scale = math.exp(top - lw)
-                        s1, s2, s3 = s1 * scale, s2 * scale * scale, s3 * scale * scale * scale
+                        s1, s2, s3 = _rescaled(s1, s2, s3, scale)
                         top, top_w, inv_top = lw, math.exp(lw), math.exp(-lw)
                     e = math.exp(lw - top)
                 s1 += e
