@@ -28,8 +28,8 @@ comes from the kernel's trace (``Collider.explain``) on a sample.
 
 One query (``Collider.collide_pair`` on one plain pair of 36-gons), taken apart the same way: a
 trivial ``@njit`` call with the same four pose arrays; the compiled one-pair kernel called with
-all its arguments (the two prism arrays of each shape, the four poses, the scalars as one array,
-the contact's output array: each crosses Numba's dispatcher, which types and unboxes it); then the
+all its arguments (one array holding both prisms and the scalars, the four poses, the contact's
+output array: each crosses Numba's dispatcher, which types and unboxes it); then the
 result tuple; then the whole method (its checks of the call's form).
 
 One thread, medians over repeats, all figures from one run:
@@ -52,7 +52,7 @@ from prismbatch._kernels.batch import (
     collide_pair,
     collide_serial,
     frame_inverse,
-    pair_params,
+    pair_bundle,
     pair_tolerance,
     relative_pose,
 )
@@ -187,18 +187,17 @@ def latency_steps(repeats):
     ka, kb = pb.PrismSet([a.xy]).kernel_arrays(), pb.PrismSet([b.xy]).kernel_arrays()
     one = tuple(np.ascontiguousarray(x[0]) for x in facing_poses(1, np.random.default_rng(1), radius=RADIUS_B))
     f64 = np.dtype(np.float64)
-    params = pair_params(col.rtol, 0.0, float(np.finfo(f64).eps), ortho_tolerance(f64, f64),
+    bundle = pair_bundle(ka, kb, col.rtol, 0.0, float(np.finfo(f64).eps), ortho_tolerance(f64, f64),
                          ortho_tolerance(f64, f64), SUPPORTED_RANGE["float64"][1])  # fmt: skip
     kernel = collide_pair[f64]
-    shapes = (ka.floats, ka.ints, kb.floats, kb.ints)
 
     calls = {
         "trivial @njit call, same 4 arrays": lambda: trivial_call(*one),
-        "one-pair kernel, all 10 arguments": lambda: kernel(*shapes, *one, params, np.empty(3)),
+        "one-pair kernel, all 6 arguments": lambda: kernel(bundle, *one, np.empty(3)),
         # one expression each (walrus), so that no step adds a Python call of its own
         "+ the result tuple": lambda: (
             (c := np.empty(3)),
-            (o := kernel(*shapes, *one, params, c)),
+            (o := kernel(bundle, *one, c)),
             PairResult(o[2], o[3], c),
         ),
         "Collider.collide_pair": lambda: col.collide_pair(*one),

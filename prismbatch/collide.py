@@ -8,7 +8,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ._kernels import batch as _batch
-from ._kernels.jit import first_call
+from ._kernels.batch import PAIR_SHAPE_PROBLEM
 from ._kernels.projection import CASES
 from .checks import check_flag, real_scalar
 from .config import DEFAULT_RTOL, MAX_RTOL, SUPPORTED_RANGE
@@ -115,13 +115,14 @@ class Collider:
         self.shape_a, self.shape_b = shape_a, shape_b
         self._a = set_a.kernel_arrays(dt)
         self._b = set_b.kernel_arrays(dt)
-        self._shape_args = (self._a.floats, self._a.ints, self._b.floats, self._b.ints)  # one-pair calls
         self._eps = float(np.finfo(dt).eps)
         # Orthonormality tolerance by the input's dtype (the one rule of as_pose).
         self._ortho_tols = {t: ortho_tolerance(t, dt) for t in (np.dtype(np.float64), np.dtype(np.float32))}
         self._pair_kernel = _batch.collide_pair[dt]
-        ortho = self._ortho_tols[dt]  # the fast path takes arrays of the compute dtype only
-        self._pair_params = _batch.pair_params(self.rtol, self.atol, self._eps, ortho, ortho, self._max_magnitude)
+        self._bundles = {}  # (ortho_tol_a, ortho_tol_b) -> pair bundle of the one-pair kernels (single prisms)
+        # Set by the first one-pair query (which compiles or closes the kernel): the bundle of poses of the
+        # compute dtype, which the fast path takes as they are.
+        self._fast_bundle = None
         self._n_shapes = None
         for per, s, nm in ((self._a_per, set_a, "shape_a"), (self._b_per, set_b, "shape_b")):
             if per:
@@ -135,8 +136,8 @@ class Collider:
         self, pos_a, rot_a=None, pos_b=None, rot_b=None, *, contact=False, margin=0.0, quat_order=None, parallel=None
     ):
         """Test the pose pairs; see :func:`collide` for the arguments."""
-        pos_a, rot_a, pos_b, rot_b = _as_written("collide", pos_a, rot_a, pos_b, rot_b)
-        check_flag(contact, "contact")
+        if contact is not False and contact is not True:  # (the common values skip the check's call)
+            check_flag(contact, "contact")
         if parallel is not None:
             check_flag(parallel, "parallel")
         if not (margin.__class__ is float and margin == 0.0):  # the plain query skips the check's cost
@@ -149,15 +150,28 @@ class Collider:
                         "contact=True needs margin=0: a margin hit need not touch (for the nearest points "
                         "use distance(..., witness=True))"
                     )
+                pos_a, rot_a, pos_b, rot_b = _as_written("collide", pos_a, rot_a, pos_b, rot_b)
                 n, pa, ra, pb, rb = self._batch_poses(pos_a, rot_a, pos_b, rot_b, quat_order, parallel)
                 hit = run_margin(self._a, self._b, pa, ra, pb, rb, n, margin, self.rtol, self.atol, parallel)
                 return CollisionResult(hit, np.zeros(n, dtype=np.int8))
-        if self._is_single_pair(pos_a, rot_a, pos_b, rot_b, quat_order):
-            # One plain pair: the compiled one-pair path (same kernel, far less Python).
-            r = self.collide_pair(pos_a, rot_a, pos_b, rot_b)
-            hit, case = np.empty(1, dtype=bool), np.empty(1, dtype=np.int8)  # (np.array([x]) costs twice)
+        # One plain pair: the compiled one-pair path (same kernel, far less Python). The poses' dimensions
+        # first: a batch that the closed kernel refused would cost some 0.1 ms in Numba's TypeError.
+        r = None
+        if (
+            pos_a.__class__ is pos_b.__class__ is rot_a.__class__ is _ndarray
+            and pos_a.ndim == pos_b.ndim == 1
+            and rot_a.ndim == 2
+            and getattr(rot_b, "ndim", 2) == 2
+        ):
+            r = self._fast_pair(pos_a, rot_a, pos_b, rot_b, quat_order)
+        if r is None:
+            pos_a, rot_a, pos_b, rot_b = _as_written("collide", pos_a, rot_a, pos_b, rot_b)
+            if self._is_single_pair(pos_a, rot_a, pos_b, rot_b, quat_order):  # (the first one-pair query)
+                r = self.collide_pair(pos_a, rot_a, pos_b, rot_b)
+        if r is not None:
+            hit, case = _empty(1, dtype=bool), _empty(1, dtype=np.int8)  # (np.array([x]) costs twice)
             hit[0], case[0] = r.hit, r.case
-            return CollisionResult(hit, case, r.contact[None, :].astype(self.dtype) if contact else None)
+            return _collision_result(hit, case, r.contact[None, :].astype(self.dtype) if contact else None)
         n, pa, ra, pb, rb = self._batch_poses(pos_a, rot_a, pos_b, rot_b, quat_order, parallel)
         hit, case, cont = _batch.run(
             self._a,
@@ -184,9 +198,10 @@ class Collider:
         if self._is_single_pair(pos_a, rot_a, pos_b, rot_b, quat_order):
             # One plain pair: checks and set-up in one compiled call (a controller's query).
             pair = tuple(_kernel_array(x, x.shape, self.dtype) for x in (pos_a, rot_a, pos_b, rot_b))
-            problem, val, res = one_pair_distance(self._shape_args, pair, self._pair_params, self.dtype, witness)
+            ortho = self._ortho_tols[self.dtype]  # the arrays are of the compute dtype
+            problem, val, res = one_pair_distance(self._pair_bundle(ortho, ortho), pair, self.dtype, witness)
             if problem:
-                raise ValueError(_pair_problem(problem, val, self._pair_params[3], self._max_magnitude))
+                raise ValueError(_pair_problem(problem, val, ortho, self._max_magnitude))
             return res
         poses = self._batch_poses(pos_a, rot_a, pos_b, rot_b, quat_order, parallel)
         return signed_distance(
@@ -267,8 +282,9 @@ class Collider:
         For loops that query one pair at a time (a controller, a single-query
         timing study); both shapes must be single prisms. Each pose is a (3,)
         position with a rotation in any form :func:`collide` takes, or a 4x4
-        transform (``collide_pair(T_a, T_b)``); the fastest form is a
-        C-contiguous (3,) position and (3, 3) matrix of the Collider's dtype.
+        transform (``collide_pair(T_a, T_b)``); the fastest form is a (3,)
+        position and a (3, 3) matrix of the Collider's dtype (views such as
+        ``T[:3, 3]`` and ``T[:3, :3]`` included); other forms are converted first.
         The contact point costs a few flops here and is always returned (NaN
         when no hit).
 
@@ -282,38 +298,59 @@ class Collider:
         ValueError
             As :meth:`collide` for non-finite, non-orthonormal or reflected poses.
         """
-        if self._a_per or self._b_per:
-            raise TypeError("collide_pair needs single Prism shapes, not PrismSets")
-        if _pair_closed[self.dtype] and quat_order is None:
-            # The common case, kept short (a one-pair call takes about a microsecond): the kernel,
-            # closed to other signatures, takes the arrays only if they are ready as they are.
-            contact = np.empty(3)
-            try:
-                out = self._pair_kernel(*self._shape_args, pos_a, rot_a, pos_b, rot_b, self._pair_params, contact)
-            except TypeError:  # another dtype or layout, a read-only array, not an array
-                out = None
-            if out is not None and out[0] != _batch.PAIR_SHAPE_PROBLEM:
-                if out[0]:
-                    raise ValueError(_pair_problem(out[0], out[1], self._pair_params[3], self._max_magnitude))
-                return _new_tuple(PairResult, (out[2], out[3], contact))
-        return self._converted_pair(pos_a, rot_a, pos_b, rot_b, quat_order)
+        res = self._fast_pair(pos_a, rot_a, pos_b, rot_b, quat_order)
+        if res is None:
+            return self._converted_pair(pos_a, rot_a, pos_b, rot_b, quat_order)
+        return res
+
+    def _fast_pair(self, pos_a, rot_a, pos_b, rot_b, quat_order):
+        """The :class:`PairResult` of one pair whose poses the closed kernel takes as they are, else None.
+
+        The common case, kept short (a one-pair query takes about a microsecond): the kernel, closed to
+        other signatures, takes (3,) and (3, 3) writeable arrays of the compute dtype only (views too).
+        """
+        bundle = self._fast_bundle  # None until the first query (and always for PrismSets)
+        # A call the kernel refuses costs some 0.1 ms in Numba's TypeError: rot_b tells the common ones
+        # (None: two 4x4 transforms; a list; another dtype) at some 50 ns.
+        if bundle is None or quat_order is not None or rot_b.__class__ is not _ndarray or rot_b.dtype is not self.dtype:
+            return None
+        contact = _empty(3)
+        try:
+            out = self._pair_kernel(bundle, pos_a, rot_a, pos_b, rot_b, contact)
+        except TypeError:  # another dtype or layout, a read-only array, not an array
+            return None
+        problem = out[0]
+        if problem:
+            if problem == PAIR_SHAPE_PROBLEM:  # the converted path says which pose has which shape
+                return None
+            raise ValueError(_pair_problem(problem, out[1], self._ortho_tols[self.dtype], self._max_magnitude))
+        return _new_tuple(PairResult, (out[2], out[3], contact))
+
+    def _pair_bundle(self, ortho_tol_a, ortho_tol_b):
+        """The one-pair kernels' bundle (shapes and scalars) for these orthonormality tolerances (cached)."""
+        key = (ortho_tol_a, ortho_tol_b)
+        bundle = self._bundles.get(key)
+        if bundle is None:
+            bundle = _batch.pair_bundle(self._a, self._b, self.rtol, self.atol, self._eps, *key, self._max_magnitude)
+            self._bundles[key] = bundle
+        return bundle
 
     def _converted_pair(self, pos_a, rot_a, pos_b, rot_b, quat_order):
         """:meth:`collide_pair` with its arguments checked and converted (and the first call)."""
+        if self._a_per or self._b_per:
+            raise TypeError("collide_pair needs single Prism shapes, not PrismSets")
         pos_a, rot_a, pos_b, rot_b = transforms_as_written(pos_a, rot_a, pos_b, rot_b)
         if pos_b is None:
             raise TypeError("collide_pair needs a pose for b: pos_b and rot_b, or two 4x4 transforms")
         Pa, Ra, ta = self._one_pose(pos_a, rot_a, quat_order, "a")
         Pb, Rb, tb = self._one_pose(pos_b, rot_b, quat_order, "b")
         contact = np.empty(3)
-        params = _batch.pair_params(self.rtol, self.atol, self._eps, ta, tb, self._max_magnitude)
-        args = (*self._shape_args, Pa, Ra, Pb, Rb, params, contact)
-        if _pair_closed[self.dtype]:
-            out = self._pair_kernel(*args)
-        else:
-            out = first_call(self._pair_kernel, self._pair_kernel, *args)
-            self._pair_kernel.disable_compile()
+        if not _pair_closed[self.dtype]:
+            _batch.close_pair_kernel(self.dtype)
             _pair_closed[self.dtype] = True
+        out = self._pair_kernel(self._pair_bundle(ta, tb), Pa, Ra, Pb, Rb, contact)
+        ortho = self._ortho_tols[self.dtype]
+        self._fast_bundle = self._pair_bundle(ortho, ortho)
         problem, val = out[0], out[1]
         if problem:
             raise ValueError(_pair_problem(problem, val, ta if problem <= 4 else tb, self._max_magnitude))
@@ -382,15 +419,19 @@ class Collider:
         return _kernel_array(P, (3,), self.dtype), _kernel_array(R, (3, 3), self.dtype), np.inf
 
     def _is_single_pair(self, pos_a, rot_a, pos_b, rot_b, quat_order):
-        """One plain pair of ndarrays of the compute dtype (written out flat: a loop over the four
-        cost 0.79 µs of a 3.8 µs one-pair query, this 0.58 µs)."""
+        """One plain pair of ndarrays of the compute dtype (written out flat, dtypes compared by identity
+        first: as a loop over the four, with ``==`` on dtypes, it cost a one-pair query 0.6 to 0.8 µs)."""
         if self._a_per or self._b_per or quat_order is not None:
             return False
+        dt = self.dtype
         return (
-            type(pos_a) is type(rot_a) is type(pos_b) is type(rot_b) is np.ndarray
+            pos_a.__class__ is rot_a.__class__ is pos_b.__class__ is rot_b.__class__ is np.ndarray
             and pos_a.shape == pos_b.shape == (3,)
             and rot_a.shape == rot_b.shape == (3, 3)
-            and pos_a.dtype == rot_a.dtype == pos_b.dtype == rot_b.dtype == self.dtype
+            and (pos_a.dtype is dt or pos_a.dtype == dt)
+            and (rot_a.dtype is dt or rot_a.dtype == dt)
+            and (pos_b.dtype is dt or pos_b.dtype == dt)
+            and (rot_b.dtype is dt or rot_b.dtype == dt)
         )
 
     def _ortho_tol(self, rot):
@@ -462,6 +503,18 @@ class PairResult(NamedTuple):
 #: PairResults are built with tuple.__new__: the class's own __new__ is one more Python call (some
 #: 50 ns of a one-pair query).
 _new_tuple = tuple.__new__
+
+
+def _collision_result(hit, case, contact):
+    """``CollisionResult(hit, case, contact)`` without the frozen dataclass's ``__init__``, which sets each
+    field through ``object.__setattr__`` (some 0.3 µs of a one-pair query)."""
+    r = _object_new(CollisionResult)
+    r.__dict__.update(hit=hit, case=case, _contact=contact)
+    return r
+
+
+_object_new = object.__new__
+_empty, _ndarray = np.empty, np.ndarray  # (module globals: one attribute lookup less in a one-pair query)
 
 
 def collide(

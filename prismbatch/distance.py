@@ -189,18 +189,14 @@ def distance(
     return col.distance(pos_a, rot_a, pos_b, rot_b, witness=witness, quat_order=quat_order, parallel=parallel)
 
 
-def one_pair_distance(shape_args, pair, params, dtype, witness):
+def one_pair_distance(bundle, pair, dtype, witness):
     """:func:`distance` of one pair whose poses are C-contiguous (3,) and (3, 3) arrays of ``dtype``.
 
     Parameters
     ----------
-    shape_args : tuple
-        ``(a.floats, a.ints, b.floats, b.ints)`` of the packed single prisms.
-    pair : tuple of numpy.ndarray
-        ``(pos_a, rot_a, pos_b, rot_b)``, checked in the kernel.
-    params : numpy.ndarray
-        ``(rtol, atol, eps, ortho_tol_a, ortho_tol_b, max_magnitude)`` as float64, as ``collide_pair``
-        takes them (``prismbatch._kernels.batch.pair_params``).
+    bundle : numpy.ndarray
+        The packed single prisms and the scalars ``(rtol, atol, eps, ortho_tol_a, ortho_tol_b,
+        max_magnitude)``, as ``collide_pair`` takes them (``prismbatch._kernels.batch.pair_bundle``).
     dtype : numpy.dtype
     witness : bool
 
@@ -212,7 +208,7 @@ def one_pair_distance(shape_args, pair, params, dtype, witness):
         (as ``collide_pair``'s) and None.
     """
     kern = distance_pair[np.dtype(dtype)]
-    problem, val, d, t, status, code, n, p, q = first_call(kern, kern, *shape_args, *pair, params, bool(witness))
+    problem, val, d, t, status, code, n, p, q = first_call(kern, kern, bundle, *pair, bool(witness))
     if problem:
         return problem, val, None
     head = (np.array([d]), np.array([status], np.int8), np.array([t]), np.array([code], np.int8))

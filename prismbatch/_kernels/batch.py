@@ -14,7 +14,7 @@ import numba
 import numpy as np
 from numba import prange
 
-from .checks import first_bad_rotation
+from .checks import rotation_problem
 from .jit import first_call, jit, per_dtype, twins
 from .planar import extreme_vertex
 from .projection import CASE_ABOVE, T_P, T_R, T_TOL, pair_test, surely_above, surely_above_by_radius
@@ -469,34 +469,68 @@ def pair_problem(Pa, Ra, Pb, Rb, ortho_tol_a, ortho_tol_b, max_magnitude):
             if not abs(P[j]) <= max_magnitude:  # also NaN
                 return 1 + 4 * k, np.float64(P[j])
     for k, (R, ortho_tol) in enumerate(((Ra, ortho_tol_a), (Rb, ortho_tol_b))):
-        _, kind, val = first_bad_rotation(R.reshape((1, 3, 3)), ortho_tol)
+        kind, val = rotation_problem(R, ortho_tol)  # (R may be a strided view: no reshape)
         if kind != 0:
             return 1 + kind + 4 * k, np.float64(val)
     return 0, 0.0
 
 
-def pair_params(rtol, atol, eps, ortho_tol_a, ortho_tol_b, max_magnitude):
-    """The scalars of the one-pair kernels as one float64 array: each scalar argument costs a call
-    some 40 ns at the dispatcher, as an array does."""
-    return np.array([rtol, atol, eps, ortho_tol_a, ortho_tol_b, max_magnitude], dtype=np.float64)
+#: A pair bundle's header: the lengths of a's and b's int arrays, the length of a's floats, the start and
+#: length of b's floats (in elements of the float dtype); then the six scalars of :func:`pair_scalars`.
+BUNDLE_HEAD, BUNDLE_SCALARS = 5, 6
+
+
+def pair_bundle(a_arrays, b_arrays, rtol, atol, eps, ortho_tol_a, ortho_tol_b, max_magnitude):
+    """Everything a one-pair kernel takes besides the poses, as one int64 array (see :func:`unbundle`).
+
+    Each array crosses the dispatcher at some 75 ns a call: the two packed prisms (four arrays) and the
+    scalars cost a one-pair query 0.3 µs as five arguments. The floats keep their dtype, stored as raw
+    words: b's start on a word, so that both are views of one reinterpretation.
+    """
+    fa, fb = a_arrays.floats, b_arrays.floats
+    per_word = 8 // fa.itemsize
+    start_b = -(-fa.size // per_word) * per_word
+    floats = np.zeros(-(-(start_b + fb.size) // per_word) * per_word, dtype=fa.dtype)
+    floats[: fa.size] = fa
+    floats[start_b : start_b + fb.size] = fb
+    head = np.array([a_arrays.ints.size, b_arrays.ints.size, fa.size, start_b, fb.size], dtype=np.int64)
+    scalars = np.array([rtol, atol, eps, ortho_tol_a, ortho_tol_b, max_magnitude], dtype=np.float64)
+    return np.concatenate((head, scalars.view(np.int64), a_arrays.ints, b_arrays.ints, floats.view(np.int64)))
+
+
+@jit(inline="always", refcounts=True)  # returns arrays (when called from Python, not inlined)
+def unbundle(bundle, like):
+    """``(a_floats, a_ints, b_floats, b_ints, scalars)`` of a :func:`pair_bundle`, as views; ``like``: an
+    array of the floats' dtype (a pose). Python takes them apart with ``unbundle.py_func``; a test compares."""
+    ka, kb, fa, start_b, fb = bundle[0], bundle[1], bundle[2], bundle[3], bundle[4]
+    s = BUNDLE_HEAD + BUNDLE_SCALARS
+    floats = bundle[s + ka + kb :].view(like.dtype)
+    return (
+        floats[:fa],
+        bundle[s : s + ka],
+        floats[start_b : start_b + fb],
+        bundle[s + ka : s + ka + kb],
+        bundle[BUNDLE_HEAD:s].view(np.float64),
+    )
 
 
 @jit(inline="always")
-def pair_scalars(params):
-    """The six scalars of :func:`pair_params`, in its order, inside a kernel."""
-    return params[0], params[1], params[2], params[3], params[4], params[5]
+def pair_scalars(scalars):
+    """``(rtol, atol, eps, ortho_tol_a, ortho_tol_b, max_magnitude)``: the scalars of a :func:`pair_bundle`."""
+    return scalars[0], scalars[1], scalars[2], scalars[3], scalars[4], scalars[5]
 
 
-def _collide_pair(a_floats, a_ints, b_floats, b_ints, Pa, Ra, Pb, Rb, params, contact):
+def _collide_pair(bundle, Pa, Ra, Pb, Rb, contact):
     """One pair, with its input checks compiled in (the low-latency path).
 
-    ``params``: :func:`pair_params`. Returns (problem, value, hit, case) and writes the contact
+    ``bundle``: :func:`pair_bundle`. Returns (problem, value, hit, case) and writes the contact
     point (NaN if no hit) into ``contact``, a float64 (3,) array: the caller's ``np.empty(3)``
     costs a third of building the array from three returned floats. ``problem`` 0 means the
     inputs are valid; otherwise it names the first bad input (see collide._pair_problem) and
     ``value`` gives the offending number (``contact`` is then not written).
     """
-    rtol, atol, eps, ortho_tol_a, ortho_tol_b, max_magnitude = pair_scalars(params)
+    a_floats, a_ints, b_floats, b_ints, scalars = unbundle(bundle, Pa)
+    rtol, atol, eps, ortho_tol_a, ortho_tol_b, max_magnitude = pair_scalars(scalars)
     problem, val = pair_problem(Pa, Ra, Pb, Rb, ortho_tol_a, ortho_tol_b, max_magnitude)
     if problem:
         return problem, val, False, 0
@@ -506,8 +540,25 @@ def _collide_pair(a_floats, a_ints, b_floats, b_ints, Pa, Ra, Pb, Rb, params, co
     return 0, 0.0, hit, case
 
 
-#: The one-pair kernel, one compiled copy per dtype. Each is closed to new signatures once
-#: its own has compiled (``disable_compile``), so that a call with anything else (another
-#: dtype or layout, a read-only array, a list) raises TypeError instead of compiling a
+#: The one-pair kernel, one compiled copy per dtype. Each is compiled for one signature
+#: (:func:`pair_signature`) and closed to others (``disable_compile``), so that a call with anything
+#: else (another dtype, a read-only array, a list) raises TypeError instead of compiling a
 #: specialisation: ``Collider.collide_pair`` then converts the arguments and calls again.
 collide_pair = per_dtype(_collide_pair, "collide_pair", (np.float64, np.float32), error_model="numpy")
+
+
+def pair_signature(dtype):
+    """The one signature of ``collide_pair[dtype]``: the poses in any layout, so that views (a 4x4
+    transform's ``T[:3, 3]`` and ``T[:3, :3]``) pass as they are; a call that Numba's dispatcher
+    refuses costs some 0.1 ms in its TypeError, a hundred one-pair queries."""
+    f = numba.from_dtype(np.dtype(dtype))
+    vector, matrix = numba.types.Array(f, 1, "A"), numba.types.Array(f, 2, "A")
+    c_int64, c_float64 = numba.types.Array(numba.types.int64, 1, "C"), numba.types.Array(numba.types.float64, 1, "C")
+    return (c_int64, vector, matrix, vector, matrix, c_float64)
+
+
+def close_pair_kernel(dtype):
+    """Compile (or load from the cache) ``collide_pair[dtype]`` for :func:`pair_signature` and close it."""
+    kernel = collide_pair[np.dtype(dtype)]
+    first_call(kernel, kernel.compile, pair_signature(dtype))
+    kernel.disable_compile()

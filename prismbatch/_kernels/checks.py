@@ -56,6 +56,14 @@ def _rotation_problem(R, tol):
     return 3, det
 
 
+@jit(inline="always")
+def rotation_problem(R, tol):
+    """(kind, value) of one (3, 3) matrix, as :func:`first_bad_rotation` classifies it (kind 0: good)."""
+    if _rotation_ok(R, tol):
+        return 0, 0.0
+    return _rotation_problem(R, tol)
+
+
 @jit
 def first_bad_rotation(Rb, tol):
     """One pass over (N, 3, 3): (index, kind, value) of the first bad matrix.

@@ -9,30 +9,20 @@ import math
 
 import numpy as np
 
-from .batch import pair_problem, pair_scalars, unpack
+from .batch import pair_problem, pair_scalars, unbundle, unpack
 from .distance import EPA_ROOM, block_of, pair_distance_any_room, signed_status, workspace
 from .jit import per_dtype
 
 
-def _distance_pair(
-    a_floats,
-    a_ints,
-    b_floats,
-    b_ints,
-    Pa,
-    Ra,
-    Pb,
-    Rb,
-    params,
-    witness,
-):
+def _distance_pair(bundle, Pa, Ra, Pb, Rb, witness):
     """(problem, value, distance, tol, status, solver, normal, point_a, point_b) of one pair.
 
-    ``params``: :func:`~.batch.pair_params`. ``problem`` 0: valid inputs; otherwise the first bad
+    ``bundle``: :func:`~.batch.pair_bundle`. ``problem`` 0: valid inputs; otherwise the first bad
     one, as ``collide_pair``'s, with ``value`` the offending number. The 3-tuples are NaN unless
     ``witness``.
     """
-    rtol, atol, eps, ortho_tol_a, ortho_tol_b, max_magnitude = pair_scalars(params)
+    a_floats, a_ints, b_floats, b_ints, scalars = unbundle(bundle, Pa)
+    rtol, atol, eps, ortho_tol_a, ortho_tol_b, max_magnitude = pair_scalars(scalars)
     nan = math.nan
     none = (nan, nan, nan)
     problem, val = pair_problem(Pa, Ra, Pb, Rb, ortho_tol_a, ortho_tol_b, max_magnitude)

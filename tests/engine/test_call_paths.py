@@ -147,3 +147,50 @@ def test_one_pair_distance_equals_the_batch(dtype):
             assert str(err.value).startswith(name)  # the batch adds the index: pos_b[0]
     strided = np.zeros((3, 2), dtype=dtype)[:, 0]  # not contiguous: copied, same answer
     assert col.distance(strided, ra, pb_, rb).distance[0] == col.distance(pa, ra, pb_, rb).distance[0]
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_one_pair_forms_reach_the_kernel_as_they_should(dtype, monkeypatch):
+    # Views of a 4x4 transform go to the compiled kernel as they are (its signature takes any layout);
+    # forms it cannot take (a list, another dtype, two transforms) are converted without being offered
+    # to it: a call Numba's dispatcher refuses costs some 0.1 ms in its TypeError.
+    ps = make_family("free", 40, 3)
+    A, B = pb.Prism(ps.xy_a[0]), pb.Prism(ps.xy_b[0])
+    col = pb.Collider(A, B, dtype=dtype)
+    other = np.float32 if dtype == np.float64 else np.float64
+    rows = range(40)
+    T = np.zeros((40, 2, 4, 4), dtype=dtype)
+    T[:, 0, :3, :3], T[:, 0, :3, 3], T[:, 1, :3, :3], T[:, 1, :3, 3] = ps.rot_a, ps.pos_a, ps.rot_b, ps.pos_b
+    T[:, :, 3, 3] = 1.0
+    batch = col.collide(T[:, 0], T[:, 1], contact=True)  # the same numbers as stored in dtype
+    col.collide_pair(*(np.ascontiguousarray(x[0], dtype=dtype) for x in (ps.pos_a, ps.rot_a, ps.pos_b, ps.rot_b)))
+
+    kernel = col._pair_kernel
+    offered = []
+
+    def recording(bundle, pa, ra, pb_, rb, contact):
+        offered.append((pa.dtype, ra.dtype, pb_.dtype, rb.dtype))
+        return kernel(bundle, pa, ra, pb_, rb, contact)
+
+    monkeypatch.setattr(col, "_pair_kernel", recording)
+    converted = []
+    real_converted = col._converted_pair
+    monkeypatch.setattr(col, "_converted_pair", lambda *a: converted.append(1) or real_converted(*a))
+    for k in rows:
+        Ta, Tb = T[k, 0], T[k, 1]
+        views = col.collide_pair(Ta[:3, 3], Ta[:3, :3], Tb[:3, 3], Tb[:3, :3])
+        assert views.hit == batch.hit[k] and views.case == batch.case[k]
+        np.testing.assert_array_equal(views.contact.astype(dtype), batch.contact[k])  # (a pair's is float64)
+    assert not converted and len(offered) == len(rows)  # every view pair went straight to the kernel
+    offered.clear()
+    Ta, Tb = T[5, 0], T[5, 1]
+    for args in (
+        (Ta[:3, 3].tolist(), Ta[:3, :3].tolist(), Tb[:3, 3].tolist(), Tb[:3, :3].tolist()),
+        (Ta[:3, 3].astype(other), Ta[:3, :3].astype(other), Tb[:3, 3].astype(other), Tb[:3, :3].astype(other)),
+        (Ta, Tb),
+    ):
+        r = col.collide_pair(*args)
+        assert r.hit == batch.hit[5] and r.case == batch.case[5]
+    assert len(converted) == 3
+    # what reached the kernel was converted to the compute dtype first, never refused by it
+    assert all(d == np.dtype(dtype) for row in offered for d in row)

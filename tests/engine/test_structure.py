@@ -189,3 +189,25 @@ def test_kernels_compiled_without_reference_counting_return_no_arrays():
                     checked += 1
                     assert not holds_array(cres.signature.return_type), f"{info.name}.{name} returns arrays"
     assert checked > 20
+
+
+def test_the_pair_bundle_holds_both_prisms_and_the_scalars():
+    # The one-pair kernels take both packed prisms and their scalars as one int64 array (pair_bundle):
+    # the compiled unbundle (what they read) and unbundle.py_func give back exactly what went in.
+    import numpy as np
+
+    import prismbatch as pb
+    from prismbatch._kernels.batch import pair_bundle, unbundle
+
+    for dt in (np.float64, np.float32):
+        for na, nb in ((5, 3), (4, 40), (3, 7)):  # odd and even counts of float32 words
+            a = pb.PrismSet([pb.Prism.regular(na, 1.0)]).kernel_arrays(dt)
+            b = pb.PrismSet([pb.Prism.regular(nb, 2.5)]).kernel_arrays(dt)
+            scalars = (1e-9, 0.5, 2.0**-52, 1e-6, 3e-7, 1e15)
+            bundle = pair_bundle(a, b, *scalars)
+            like = np.zeros(3, dtype=dt)
+            for parts in (unbundle(bundle, like), unbundle.py_func(bundle, like)):
+                want = (a.floats, a.ints, b.floats, b.ints)
+                for got, w in zip(parts[:4], want):
+                    assert got.dtype == w.dtype and np.array_equal(got, w)
+                assert parts[4].dtype == np.float64 and parts[4].tolist() == list(scalars)
