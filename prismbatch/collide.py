@@ -342,6 +342,20 @@ class Collider:
         pos_a, rot_a, pos_b, rot_b = transforms_as_written(pos_a, rot_a, pos_b, rot_b)
         if pos_b is None:
             raise TypeError("collide_pair needs a pose for b: pos_b and rot_b, or two 4x4 transforms")
+        if (
+            rot_a is None
+            and rot_b is None
+            and _plain_transform(pos_a, self.dtype)
+            and _plain_transform(pos_b, self.dtype)
+        ):
+            # Two 4x4 transforms of the compute dtype: their blocks go to the kernel as views. A pose it
+            # rejects is checked again below, for the message that names the transform.
+            try:
+                res = self._fast_pair(pos_a[:3, 3], pos_a[:3, :3], pos_b[:3, 3], pos_b[:3, :3], None)
+            except ValueError:
+                res = None
+            if res is not None:
+                return res
         Pa, Ra, ta = self._one_pose(pos_a, rot_a, quat_order, "a")
         Pb, Rb, tb = self._one_pose(pos_b, rot_b, quat_order, "b")
         contact = np.empty(3)
@@ -460,6 +474,12 @@ class Collider:
 
 #: Whether the one-pair kernel of a dtype has compiled its one signature and been closed to others.
 _pair_closed = {np.dtype(np.float64): False, np.dtype(np.float32): False}
+
+
+def _plain_transform(T, dtype):
+    """A (4, 4) ndarray of ``dtype`` whose last row is exactly [0, 0, 0, 1] (the pose check accepts it
+    within a tolerance: the rest take that path)."""
+    return T.__class__ is np.ndarray and T.shape == (4, 4) and T.dtype == dtype and T[3].tolist() == [0, 0, 0, 1]
 
 
 def _as_written(query, pos_a, rot_a, pos_b, rot_b):

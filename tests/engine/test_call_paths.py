@@ -194,3 +194,36 @@ def test_one_pair_forms_reach_the_kernel_as_they_should(dtype, monkeypatch):
     assert len(converted) == 3
     # what reached the kernel was converted to the compute dtype first, never refused by it
     assert all(d == np.dtype(dtype) for row in offered for d in row)
+
+
+def test_two_transforms_take_the_kernel_and_bad_ones_keep_their_messages(monkeypatch):
+    # collide_pair(T_a, T_b) passes the transforms' blocks to the kernel as views (a few µs, not the
+    # pose parser's tens); a transform the kernel rejects is parsed again for the message naming it.
+    ps = make_family("facing", 30, 5)
+    col = pb.Collider(pb.Prism(ps.xy_a[0]), pb.Prism(ps.xy_b[0]))
+    T = np.zeros((30, 2, 4, 4))
+    T[:, 0, :3, :3], T[:, 0, :3, 3], T[:, 1, :3, :3], T[:, 1, :3, 3] = ps.rot_a, ps.pos_a, ps.rot_b, ps.pos_b
+    T[:, :, 3, 3] = 1.0
+    batch = col.collide(T[:, 0], T[:, 1], contact=True)
+    col.collide_pair(T[0, 0], T[0, 1])  # the first query compiles or closes the kernel
+    parsed = []
+    real_one_pose = col._one_pose
+    monkeypatch.setattr(col, "_one_pose", lambda *a: parsed.append(a[-1]) or real_one_pose(*a))
+    for k in range(30):
+        r = col.collide_pair(T[k, 0], T[k, 1])
+        assert r.hit == batch.hit[k] and r.case == batch.case[k]
+        np.testing.assert_array_equal(r.contact, batch.contact[k])
+    assert not parsed
+    bad = T[3].copy()
+    bad[1, :3, :3] = bad[1, :3, :3] @ np.diag([1.0, 1.0, -1.0])  # a reflection
+    with pytest.raises(ValueError, match=r"^pose_b rotation block is a reflection"):
+        col.collide_pair(bad[0], bad[1])
+    bad = T[3].copy()
+    bad[0, 0, 3] = np.nan
+    with pytest.raises(ValueError, match=r"^pose_a"):
+        col.collide_pair(bad[0], bad[1])
+    parsed.clear()
+    tilted = T[3].copy()
+    tilted[0, 3, 0] = 1e-13  # within the last row's tolerance: parsed, and the same answer
+    r = col.collide_pair(tilted[0], tilted[1])
+    assert r.hit == batch.hit[3] and parsed == ["a", "b"]
