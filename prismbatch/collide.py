@@ -166,7 +166,9 @@ class Collider:
             r = self._fast_pair(pos_a, rot_a, pos_b, rot_b, quat_order)
         if r is None:
             pos_a, rot_a, pos_b, rot_b = _as_written("collide", pos_a, rot_a, pos_b, rot_b)
-            if self._is_single_pair(pos_a, rot_a, pos_b, rot_b, quat_order):  # (the first one-pair query)
+            if self._is_single_pair(pos_a, rot_a, pos_b, rot_b, quat_order) or self._is_transform_pair(
+                pos_a, rot_a, pos_b, rot_b, quat_order
+            ):  # (the first one-pair query; two 4x4 transforms)
                 r = self.collide_pair(pos_a, rot_a, pos_b, rot_b)
         if r is not None:
             hit, case = _empty(1, dtype=bool), _empty(1, dtype=np.int8)  # (np.array([x]) costs twice)
@@ -342,12 +344,7 @@ class Collider:
         pos_a, rot_a, pos_b, rot_b = transforms_as_written(pos_a, rot_a, pos_b, rot_b)
         if pos_b is None:
             raise TypeError("collide_pair needs a pose for b: pos_b and rot_b, or two 4x4 transforms")
-        if (
-            rot_a is None
-            and rot_b is None
-            and _plain_transform(pos_a, self.dtype)
-            and _plain_transform(pos_b, self.dtype)
-        ):
+        if self._is_transform_pair(pos_a, rot_a, pos_b, rot_b, quat_order):
             # Two 4x4 transforms of the compute dtype: their blocks go to the kernel as views. A pose it
             # rejects is checked again below, for the message that names the transform.
             try:
@@ -447,6 +444,13 @@ class Collider:
             and (pos_b.dtype is dt or pos_b.dtype == dt)
             and (rot_b.dtype is dt or rot_b.dtype == dt)
         )
+
+    def _is_transform_pair(self, pos_a, rot_a, pos_b, rot_b, quat_order):
+        """Two (4, 4) ndarrays of the compute dtype, each with a last row of exactly [0, 0, 0, 1], for single
+        prisms (as :func:`~prismbatch.poses.transforms_as_written` leaves them: rotations None)."""
+        if self._a_per or self._b_per or quat_order is not None or rot_a is not None or rot_b is not None:
+            return False
+        return _plain_transform(pos_a, self.dtype) and _plain_transform(pos_b, self.dtype)
 
     def _ortho_tol(self, rot):
         """:func:`~prismbatch.poses.ortho_tolerance` of the rotation's own dtype (cached per dtype)."""

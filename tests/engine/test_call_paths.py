@@ -197,8 +197,9 @@ def test_one_pair_forms_reach_the_kernel_as_they_should(dtype, monkeypatch):
 
 
 def test_two_transforms_take_the_kernel_and_bad_ones_keep_their_messages(monkeypatch):
-    # collide_pair(T_a, T_b) passes the transforms' blocks to the kernel as views (a few µs, not the
-    # pose parser's tens); a transform the kernel rejects is parsed again for the message naming it.
+    # collide_pair(T_a, T_b), and collide on one such pair, pass the transforms' blocks to the kernel as
+    # views (a few µs, not the pose parser's tens); a transform the kernel rejects is parsed again for
+    # the message naming it.
     ps = make_family("facing", 30, 5)
     col = pb.Collider(pb.Prism(ps.xy_a[0]), pb.Prism(ps.xy_b[0]))
     T = np.zeros((30, 2, 4, 4))
@@ -213,6 +214,9 @@ def test_two_transforms_take_the_kernel_and_bad_ones_keep_their_messages(monkeyp
         r = col.collide_pair(T[k, 0], T[k, 1])
         assert r.hit == batch.hit[k] and r.case == batch.case[k]
         np.testing.assert_array_equal(r.contact, batch.contact[k])
+        one = col.collide(T[k, 0], T[k, 1], contact=True)  # collide on one pair takes the same route
+        assert one.hit[0] == batch.hit[k] and one.case[0] == batch.case[k]
+        np.testing.assert_array_equal(one.contact[0], batch.contact[k])
     assert not parsed
     bad = T[3].copy()
     bad[1, :3, :3] = bad[1, :3, :3] @ np.diag([1.0, 1.0, -1.0])  # a reflection
