@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -312,9 +313,20 @@ class Collider:
         other signatures, takes (3,) and (3, 3) writeable arrays of the compute dtype only (views too).
         """
         bundle = self._fast_bundle  # None until the first query (and always for PrismSets)
-        # A call the kernel refuses costs some 0.1 ms in Numba's TypeError: rot_b tells the common ones
-        # (None: two 4x4 transforms; a list; another dtype) at some 50 ns.
-        if bundle is None or quat_order is not None or rot_b.__class__ is not _ndarray or rot_b.dtype is not self.dtype:
+        dt = self.dtype
+        # Each pose's class and dtype by identity, before the kernel: Numba's dispatcher keys arrays by a
+        # fingerprint that leaves out byte order and alignment, so once it has met an unaligned array it
+        # can take a big-endian one of the same kind for native and read its bytes wrongly; and a call it
+        # refuses costs some 0.1 ms in its TypeError (lists, another dtype, two 4x4 transforms).
+        if not (
+            bundle is not None
+            and quat_order is None
+            and pos_a.__class__ is rot_a.__class__ is pos_b.__class__ is rot_b.__class__ is _ndarray
+            and pos_a.dtype is dt
+            and rot_a.dtype is dt
+            and pos_b.dtype is dt
+            and rot_b.dtype is dt
+        ):
             return None
         contact = _empty(3)
         try:
@@ -357,8 +369,10 @@ class Collider:
         Pb, Rb, tb = self._one_pose(pos_b, rot_b, quat_order, "b")
         contact = np.empty(3)
         if not _pair_closed[self.dtype]:
-            _batch.close_pair_kernel(self.dtype)
-            _pair_closed[self.dtype] = True
+            with _pair_closing:  # first calls from several threads: one compiles, the others wait
+                if not _pair_closed[self.dtype]:
+                    _batch.close_pair_kernel(self.dtype)
+                    _pair_closed[self.dtype] = True
         out = self._pair_kernel(self._pair_bundle(ta, tb), Pa, Ra, Pb, Rb, contact)
         ortho = self._ortho_tols[self.dtype]
         self._fast_bundle = self._pair_bundle(ortho, ortho)
@@ -423,9 +437,9 @@ class Collider:
             return f(pos, (3,), "pos_" + name), f(rot, (3, 3), "rot_" + name), self._ortho_tol(rot)
         P, R = as_pose(pos, rot, quat_order=quat_order, name=name, dtype=self.dtype)  # checked here
         if P.shape != (3,) or R.shape != (3, 3):
-            raise ValueError(
-                f"collide_pair takes one pose per body; the pose of {name} is a batch of {len(P)} (use collide)"
-            )
+            n = R.shape[0] if R.ndim == 3 else P.shape[0]
+            which = f"rot_{name}" if R.ndim == 3 else f"pos_{name}"
+            raise ValueError(f"collide_pair takes one pose per body; {which} is a batch of {n} (use collide)")
         # as_pose applied the orthonormality rule of the input's dtype; the kernel's check must not be stricter.
         return _kernel_array(P, (3,), self.dtype), _kernel_array(R, (3, 3), self.dtype), np.inf
 
@@ -463,21 +477,21 @@ class Collider:
         return tol
 
     def _pair_array(self, x, shape, name):
+        """``x`` as the one-pair kernel takes it (:func:`_kernel_array`), or a message naming ``name``."""
         a = np.asarray(x)
-        if a.dtype != self.dtype or a.shape != shape or not (a.flags.c_contiguous and a.flags.writeable):
-            if a.dtype.kind not in "iuf":
-                raise TypeError(f"{name} must have a real numeric dtype, got {a.dtype}")
-            if a.shape != shape:
-                raise ValueError(
-                    f"{name} has shape {a.shape}; collide_pair takes {shape} (use collide for "
-                    f"batches, quaternions or transforms)"
-                )
-            a = _kernel_array(a, shape, self.dtype)
-        return a
+        if a.dtype.kind not in "iuf":
+            raise TypeError(f"{name} must have a real numeric dtype, got {a.dtype}")
+        if a.shape != shape:
+            raise ValueError(
+                f"{name} has shape {a.shape}; collide_pair takes {shape} (use collide for "
+                f"batches, quaternions or transforms)"
+            )
+        return _kernel_array(a, shape, self.dtype)
 
 
 #: Whether the one-pair kernel of a dtype has compiled its one signature and been closed to others.
 _pair_closed = {np.dtype(np.float64): False, np.dtype(np.float32): False}
+_pair_closing = threading.Lock()
 
 
 def _plain_transform(T, dtype):
@@ -495,17 +509,18 @@ def _as_written(query, pos_a, rot_a, pos_b, rot_b):
 
 
 def _kernel_array(x, shape, dtype):
-    """``x`` as a C-contiguous, writeable array of ``dtype`` (copied only if needed).
+    """``x`` as a C-contiguous, writeable, aligned array of ``dtype`` (copied only if needed).
 
-    Read-only inputs (``np.broadcast_to``, frozen arrays) are copied: Numba
-    types them apart, so passing them would compile every kernel again.
+    Read-only and unaligned inputs (``np.broadcast_to``, frozen arrays, fields of packed records) are
+    copied: Numba types them apart, so passing them would compile every kernel again (or, to a closed
+    kernel, raise its TypeError).
     """
     if type(x) is np.ndarray and x.shape == shape and x.dtype == dtype:  # the common case, at no cost
         flags = x.flags
-        if flags.c_contiguous and flags.writeable:
+        if flags.c_contiguous and flags.writeable and flags.aligned:
             return x
     a = np.ascontiguousarray(np.reshape(x, shape), dtype=dtype)
-    return a if a.flags.writeable else a.copy()
+    return a if a.flags.writeable and a.flags.aligned else a.copy()
 
 
 def _pair_problem(code, val, ortho_tol, max_magnitude):

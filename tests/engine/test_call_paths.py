@@ -231,3 +231,86 @@ def test_two_transforms_take_the_kernel_and_bad_ones_keep_their_messages(monkeyp
     tilted[0, 3, 0] = 1e-13  # within the last row's tolerance: parsed, and the same answer
     r = col.collide_pair(tilted[0], tilted[1])
     assert r.hit == batch.hit[3] and parsed == ["a", "b"]
+
+
+def _unaligned(x):
+    """A copy of ``x`` one byte into a buffer: same numbers, not aligned."""
+    buf = np.zeros(x.nbytes + 1, np.uint8)
+    out = np.ndarray(x.shape, x.dtype, buffer=buf, offset=1)
+    out[...] = x
+    return out
+
+
+def test_byte_order_and_alignment_never_fool_the_one_pair_kernel():
+    # Numba's dispatcher keys arrays by a fingerprint without byte order and alignment: once it had met
+    # an unaligned array, a big-endian one of the same kind reached the kernel as native and was read
+    # byte-swapped (a hit 5 apart). Each form must give the answer of the same numbers in native arrays.
+    import numba
+
+    col = pb.Collider(pb.Prism.regular(4, 1.0), pb.Prism.regular(4, 1.0))
+    I, z = np.eye(3), np.zeros(3)
+    col.collide_pair(z, I, z, I)
+    users_own = numba.njit(lambda x: x[0])  # the caller's Numba code meets such arrays first
+    for big in (np.zeros(3).astype(">f8"), np.eye(3).astype(">f8")):
+        with pytest.raises(numba.core.errors.TypingError):  # (Numba has no type for them)
+            users_own(big)
+    T = np.eye(4)
+    for x, want in ((5.0, False), (1.5, True)):
+        far = np.array([x, 0.0, 0.0])
+        T[:3, 3] = far
+        Tu, Tbig = _unaligned(T), T.astype(">f8")
+        forms = [
+            (_unaligned(far), I, z, I),
+            (far.astype(">f8"), I, z, I),
+            (far, I.astype(">f8"), z, I),
+            (Tu[:3, 3], Tu[:3, :3], z, I),
+            (Tbig[:3, 3], Tbig[:3, :3], z, I),
+            (_unaligned(far), _unaligned(I), _unaligned(z), _unaligned(I)),
+        ]
+        for k, args in enumerate(forms):
+            assert col.collide_pair(*args).hit == want, k
+            assert col.collide(*args).hit.tolist() == [want], k
+
+
+def test_first_one_pair_calls_from_several_threads(tmp_path):
+    # The first one-pair query compiles (or loads) the kernel and closes it to other signatures; threads
+    # making their first queries at once must wait for it, not find it closed half-way ("compilation
+    # disabled"). A fresh process, sharing this one's Numba cache.
+    import subprocess
+    import sys
+
+    script = tmp_path / "threads.py"
+    script.write_text(
+        "import threading, numpy as np, prismbatch as pb\n"
+        "A, B = pb.Prism.regular(5, 1.0), pb.Prism.regular(6, 1.0)\n"
+        "for dt in (np.float64, np.float32):\n"
+        "    cols = [pb.Collider(A, B, dtype=dt) for _ in range(4)]\n"
+        "    I, z = np.eye(3, dtype=dt), np.zeros(3, dtype=dt)\n"
+        "    barrier, errors, hits = threading.Barrier(4), [], []\n"
+        "    def work(c):\n"
+        "        barrier.wait()\n"
+        "        try:\n"
+        "            hits.append(bool(c.collide_pair(z, I, z, I).hit))\n"
+        "        except Exception as e:\n"
+        "            errors.append(repr(e))\n"
+        "    ts = [threading.Thread(target=work, args=(c,)) for c in cols]\n"
+        "    [t.start() for t in ts]\n"
+        "    [t.join() for t in ts]\n"
+        "    assert not errors and hits == [True] * 4, (errors, hits)\n"
+        "print('ok')\n"
+    )
+    out = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr[-2000:]
+
+
+def test_a_batch_given_to_collide_pair_is_named():
+    col = pb.Collider(pb.Prism.regular(4, 1.0), pb.Prism.regular(4, 1.0))
+    I, z = np.eye(3), np.zeros(3)
+    with pytest.raises(
+        ValueError, match=r"collide_pair takes one pose per body; rot_a is a batch of 2 \(use collide\)"
+    ):
+        col.collide_pair(z, np.stack([I, I]), z, I)
+    with pytest.raises(ValueError, match=r"rot_b is a batch of 5"):
+        col.collide_pair(z, I, z, np.tile([1.0, 0, 0, 0], (5, 1)), quat_order="wxyz")
+    with pytest.raises(ValueError, match=r"pos_b is a batch of 3"):
+        col.collide_pair(z, I, np.zeros((3, 3)), I, quat_order="wxyz")
