@@ -354,8 +354,11 @@ class Collider:
         if self._a_per or self._b_per:
             raise TypeError("collide_pair needs single Prism shapes, not PrismSets")
         pos_a, rot_a, pos_b, rot_b = transforms_as_written(pos_a, rot_a, pos_b, rot_b)
-        if pos_b is None:
-            raise TypeError("collide_pair needs a pose for b: pos_b and rot_b, or two 4x4 transforms")
+        for body, pos in (("a", pos_a), ("b", pos_b)):
+            if pos is None:
+                raise TypeError(
+                    f"collide_pair needs a pose for {body}: pos_{body} and rot_{body}, or two 4x4 transforms"
+                )
         if self._is_transform_pair(pos_a, rot_a, pos_b, rot_b, quat_order):
             # Two 4x4 transforms of the compute dtype: their blocks go to the kernel as views. A pose it
             # rejects is checked again below, for the message that names the transform.
@@ -432,8 +435,19 @@ class Collider:
 
     def _one_pose(self, pos, rot, quat_order, name):
         """``(P, R, orthonormality tolerance)`` of one body's pose for the one-pair kernel."""
-        if rot is not None and quat_order is None and not hasattr(rot, "as_matrix") and np.shape(rot) == (3, 3):
-            f = self._pair_array  # a matrix: checked by the kernel, with messages naming the argument
+        dt = self.dtype
+        if (
+            quat_order is None
+            and isinstance(pos, np.ndarray)
+            and isinstance(rot, np.ndarray)
+            and pos.dtype == dt
+            and rot.dtype == dt
+            and rot.shape == (3, 3)
+        ):
+            # arrays of the compute dtype: checked by the kernel, with messages naming the argument. Others
+            # are parsed as the batch parses them (a float64 rotation judged before its rounding to float32,
+            # a float64 position out of float32's range named so, not as the inf it would round to).
+            f = self._pair_array
             return f(pos, (3,), "pos_" + name), f(rot, (3, 3), "rot_" + name), self._ortho_tol(rot)
         P, R = as_pose(pos, rot, quat_order=quat_order, name=name, dtype=self.dtype)  # checked here
         if P.shape != (3,) or R.shape != (3, 3):
@@ -501,10 +515,14 @@ def _plain_transform(T, dtype):
 
 
 def _as_written(query, pos_a, rot_a, pos_b, rot_b):
-    """The poses with two positional 4x4 transforms read as written; TypeError naming ``query`` without b's pose."""
+    """The poses with two positional 4x4 transforms read as written; TypeError naming ``query`` and the
+    body without a pose."""
     pos_a, rot_a, pos_b, rot_b = transforms_as_written(pos_a, rot_a, pos_b, rot_b)
-    if pos_b is None:
-        raise TypeError(f"{query} needs a pose for b: pos_b (and rot_b, or a 4x4 transform as pos_b)")
+    for body, pos in (("a", pos_a), ("b", pos_b)):
+        if pos is None:
+            raise TypeError(
+                f"{query} needs a pose for {body}: pos_{body} (and rot_{body}, or a 4x4 transform as pos_{body})"
+            )
     return pos_a, rot_a, pos_b, rot_b
 
 

@@ -314,3 +314,44 @@ def test_a_batch_given_to_collide_pair_is_named():
         col.collide_pair(z, I, z, np.tile([1.0, 0, 0, 0], (5, 1)), quat_order="wxyz")
     with pytest.raises(ValueError, match=r"pos_b is a batch of 3"):
         col.collide_pair(z, I, np.zeros((3, 3)), I, quat_order="wxyz")
+
+
+def test_one_pair_inputs_of_another_dtype_are_judged_as_the_batch_judges_them():
+    # A float64 pose given to a float32 Collider: collide_pair checked the float32-rounded rotation,
+    # the batch the float64 one, and they disagreed on half the rotations at the tolerance; a float64
+    # position beyond float32's range was reported as non-finite (the inf it rounds to).
+    col = pb.Collider(pb.Prism.regular(5, 2.0), pb.Prism.regular(6, 2.5), dtype=np.float32)
+    P0, I = np.array([0.1, 0.2, 0.3]), np.eye(3)
+    col.collide_pair(P0, I, P0, I)
+    rng = np.random.default_rng(0)
+    tol = 1e-5  # ortho_tolerance(float64, float32)
+    for _ in range(100):
+        q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+        q[:, 0] *= np.sign(np.linalg.det(q))
+        E = rng.normal(size=(3, 3))
+        lo, hi = 0.0, 1e-3  # (q + t E) is orthonormal to within tol for t <= lo, not for t >= hi
+        for _ in range(60):
+            mid = (lo + hi) / 2
+            R = q + mid * E
+            lo, hi = (mid, hi) if np.abs(R.T @ R - np.eye(3)).max() <= tol else (lo, mid)
+        for t in (lo, hi):
+            R = q + t * E
+            verdicts = []
+            for call in (
+                lambda: col.collide_pair(P0, R, P0, I),
+                lambda: col.collide(P0[None], R[None], P0[None], I[None]),
+            ):
+                try:
+                    call()
+                    verdicts.append("accepted")
+                except ValueError as e:
+                    verdicts.append(str(e).split(":")[0])
+            assert verdicts[0] == verdicts[1].replace("rot_a[0]", "rot_a"), (t, verdicts)
+    for pos in ([1e39, 0, 0], np.array([1e39, 0.0, 0.0])):
+        with pytest.raises(ValueError, match=r"^pos_a has a coordinate 1e\+39 outside the supported range"):
+            col.collide_pair(pos, I, P0, I)
+    with pytest.raises(ValueError, match=r"^rot_a could not be converted to an array"):
+        col.collide_pair(P0, [[1, 0, 0], [0, 1], [0, 0, 1]], P0, I)  # ragged
+    for query in (col.collide_pair, col.collide):
+        with pytest.raises(TypeError, match=r"needs a pose for a: pos_a"):
+            query(None, None, None, None)
