@@ -2,23 +2,19 @@
 
 from __future__ import annotations
 
-import threading
 from dataclasses import dataclass
-from typing import NamedTuple
 
 import numpy as np
 
 from ._kernels import batch as _batch
-from ._kernels.batch import PAIR_SHAPE_PROBLEM
 from ._kernels.projection import CASES
 from .checks import check_flag, real_scalar
 from .config import DEFAULT_RTOL, MAX_RTOL, SUPPORTED_RANGE
+from .pair import OnePairQueries, PairResult, kernel_array, pair_problem_message
 from .poses import (
     as_pose,
     common_batch_size,
     ortho_tolerance,
-    position_message,
-    rotation_message,
     transforms_as_written,
 )
 from .results import BatchResult
@@ -87,7 +83,7 @@ class CollisionResult(BatchResult):
         return {int(v): int(c) for v, c in zip(vals, cnt)}
 
 
-class Collider:
+class Collider(OnePairQueries):
     """Two shapes fixed once, queried for many poses (like coal's ComputeCollision).
 
     Parameters
@@ -200,11 +196,11 @@ class Collider:
         check_flag(parallel, "parallel", allow_none=True)
         if self._is_single_pair(pos_a, rot_a, pos_b, rot_b, quat_order):
             # One plain pair: checks and set-up in one compiled call (a controller's query).
-            pair = tuple(_kernel_array(x, x.shape, self.dtype) for x in (pos_a, rot_a, pos_b, rot_b))
+            pair = tuple(kernel_array(x, x.shape, self.dtype) for x in (pos_a, rot_a, pos_b, rot_b))
             ortho = self._ortho_tols[self.dtype]  # the arrays are of the compute dtype
             problem, val, res = one_pair_distance(self._pair_bundle(ortho, ortho), pair, self.dtype, witness)
             if problem:
-                raise ValueError(_pair_problem(problem, val, ortho, self._max_magnitude))
+                raise ValueError(pair_problem_message(problem, val, ortho, self._max_magnitude))
             return res
         poses = self._batch_poses(pos_a, rot_a, pos_b, rot_b, quat_order, parallel)
         return signed_distance(
@@ -275,114 +271,9 @@ class Collider:
         pb, rb = as_pose(pos_b, rot_b, quat_order=quat_order, name="b", dtype=self.dtype, parallel=parallel)
         n = common_batch_size(pa, ra, pb, rb, n_shapes=self._n_shapes)
         dt = self.dtype
-        pa, pb = _kernel_array(pa, (-1, 3), dt), _kernel_array(pb, (-1, 3), dt)
-        ra, rb = _kernel_array(ra, (-1, 3, 3), dt), _kernel_array(rb, (-1, 3, 3), dt)
+        pa, pb = kernel_array(pa, (-1, 3), dt), kernel_array(pb, (-1, 3), dt)
+        ra, rb = kernel_array(ra, (-1, 3, 3), dt), kernel_array(rb, (-1, 3, 3), dt)
         return n, pa, ra, pb, rb
-
-    def collide_pair(self, pos_a, rot_a=None, pos_b=None, rot_b=None, *, quat_order=None):
-        """One pose pair at the lowest latency: one compiled call, checks included.
-
-        For loops that query one pair at a time (a controller, a single-query
-        timing study); both shapes must be single prisms. Each pose is a (3,)
-        position with a rotation in any form :func:`collide` takes, or a 4x4
-        transform (``collide_pair(T_a, T_b)``); the fastest form is a (3,)
-        position and a (3, 3) matrix of the Collider's dtype (views such as
-        ``T[:3, 3]`` and ``T[:3, :3]`` included); other forms are converted first.
-        The contact point costs a few flops here and is always returned (NaN
-        when no hit).
-
-        Returns
-        -------
-        PairResult
-            ``(hit, case, contact)``.
-
-        Raises
-        ------
-        ValueError
-            As :meth:`collide` for non-finite, non-orthonormal or reflected poses.
-        """
-        res = self._fast_pair(pos_a, rot_a, pos_b, rot_b, quat_order)
-        if res is None:
-            return self._converted_pair(pos_a, rot_a, pos_b, rot_b, quat_order)
-        return res
-
-    def _fast_pair(self, pos_a, rot_a, pos_b, rot_b, quat_order):
-        """The :class:`PairResult` of one pair whose poses the closed kernel takes as they are, else None.
-
-        The common case, kept short (a one-pair query takes about a microsecond): the kernel, closed to
-        other signatures, takes (3,) and (3, 3) writeable arrays of the compute dtype only (views too).
-        """
-        bundle = self._fast_bundle  # None until the first query (and always for PrismSets)
-        dt = self.dtype
-        # Each pose's class and dtype by identity, before the kernel: Numba's dispatcher keys arrays by a
-        # fingerprint that leaves out byte order and alignment, so once it has met an unaligned array it
-        # can take a big-endian one of the same kind for native and read its bytes wrongly; and a call it
-        # refuses costs some 0.1 ms in its TypeError (lists, another dtype, two 4x4 transforms).
-        if not (
-            bundle is not None
-            and quat_order is None
-            and pos_a.__class__ is rot_a.__class__ is pos_b.__class__ is rot_b.__class__ is _ndarray
-            and pos_a.dtype is dt
-            and rot_a.dtype is dt
-            and pos_b.dtype is dt
-            and rot_b.dtype is dt
-        ):
-            return None
-        contact = _empty(3)
-        try:
-            out = self._pair_kernel(bundle, pos_a, rot_a, pos_b, rot_b, contact)
-        except TypeError:  # another dtype or layout, a read-only array, not an array
-            return None
-        problem = out[0]
-        if problem:
-            if problem == PAIR_SHAPE_PROBLEM:  # the converted path says which pose has which shape
-                return None
-            raise ValueError(_pair_problem(problem, out[1], self._ortho_tols[self.dtype], self._max_magnitude))
-        return _new_tuple(PairResult, (out[2], out[3], contact))
-
-    def _pair_bundle(self, ortho_tol_a, ortho_tol_b):
-        """The one-pair kernels' bundle (shapes and scalars) for these orthonormality tolerances (cached)."""
-        key = (ortho_tol_a, ortho_tol_b)
-        bundle = self._bundles.get(key)
-        if bundle is None:
-            bundle = _batch.pair_bundle(self._a, self._b, self.rtol, self.atol, self._eps, *key, self._max_magnitude)
-            self._bundles[key] = bundle
-        return bundle
-
-    def _converted_pair(self, pos_a, rot_a, pos_b, rot_b, quat_order):
-        """:meth:`collide_pair` with its arguments checked and converted (and the first call)."""
-        if self._a_per or self._b_per:
-            raise TypeError("collide_pair needs single Prism shapes, not PrismSets")
-        pos_a, rot_a, pos_b, rot_b = transforms_as_written(pos_a, rot_a, pos_b, rot_b)
-        for body, pos in (("a", pos_a), ("b", pos_b)):
-            if pos is None:
-                raise TypeError(
-                    f"collide_pair needs a pose for {body}: pos_{body} and rot_{body}, or two 4x4 transforms"
-                )
-        if self._is_transform_pair(pos_a, rot_a, pos_b, rot_b, quat_order):
-            # Two 4x4 transforms of the compute dtype: their blocks go to the kernel as views. A pose it
-            # rejects is checked again below, for the message that names the transform.
-            try:
-                res = self._fast_pair(pos_a[:3, 3], pos_a[:3, :3], pos_b[:3, 3], pos_b[:3, :3], None)
-            except ValueError:
-                res = None
-            if res is not None:
-                return res
-        Pa, Ra, ta = self._one_pose(pos_a, rot_a, quat_order, "a")
-        Pb, Rb, tb = self._one_pose(pos_b, rot_b, quat_order, "b")
-        contact = np.empty(3)
-        if not _pair_closed[self.dtype]:
-            with _pair_closing:  # first calls from several threads: one compiles, the others wait
-                if not _pair_closed[self.dtype]:
-                    _batch.close_pair_kernel(self.dtype)
-                    _pair_closed[self.dtype] = True
-        out = self._pair_kernel(self._pair_bundle(ta, tb), Pa, Ra, Pb, Rb, contact)
-        ortho = self._ortho_tols[self.dtype]
-        self._fast_bundle = self._pair_bundle(ortho, ortho)
-        problem, val = out[0], out[1]
-        if problem:
-            raise ValueError(_pair_problem(problem, val, ta if problem <= 4 else tb, self._max_magnitude))
-        return _new_tuple(PairResult, (out[2], out[3], contact))
 
     def explain(self, pos_a, rot_a, pos_b, rot_b):
         """Step-by-step record of how one pose pair is decided (for ``prismbatch replay``).
@@ -433,86 +324,6 @@ class Collider:
         out.update(hit=bool(hit), case=int(case), contact=[float(cx), float(cy), float(cz)])
         return out
 
-    def _one_pose(self, pos, rot, quat_order, name):
-        """``(P, R, orthonormality tolerance)`` of one body's pose for the one-pair kernel."""
-        dt = self.dtype
-        if (
-            quat_order is None
-            and isinstance(pos, np.ndarray)
-            and isinstance(rot, np.ndarray)
-            and pos.dtype == dt
-            and rot.dtype == dt
-            and rot.shape == (3, 3)
-        ):
-            # arrays of the compute dtype: checked by the kernel, with messages naming the argument. Others
-            # are parsed as the batch parses them (a float64 rotation judged before its rounding to float32,
-            # a float64 position out of float32's range named so, not as the inf it would round to).
-            f = self._pair_array
-            return f(pos, (3,), "pos_" + name), f(rot, (3, 3), "rot_" + name), self._ortho_tol(rot)
-        P, R = as_pose(pos, rot, quat_order=quat_order, name=name, dtype=self.dtype)  # checked here
-        if P.shape != (3,) or R.shape != (3, 3):
-            n = R.shape[0] if R.ndim == 3 else P.shape[0]
-            which = f"rot_{name}" if R.ndim == 3 else f"pos_{name}"
-            raise ValueError(f"collide_pair takes one pose per body; {which} is a batch of {n} (use collide)")
-        # as_pose applied the orthonormality rule of the input's dtype; the kernel's check must not be stricter.
-        return _kernel_array(P, (3,), self.dtype), _kernel_array(R, (3, 3), self.dtype), np.inf
-
-    def _is_single_pair(self, pos_a, rot_a, pos_b, rot_b, quat_order):
-        """One plain pair of ndarrays of the compute dtype (written out flat, dtypes compared by identity
-        first: as a loop over the four, with ``==`` on dtypes, it cost a one-pair query 0.6 to 0.8 µs)."""
-        if self._a_per or self._b_per or quat_order is not None:
-            return False
-        dt = self.dtype
-        return (
-            pos_a.__class__ is rot_a.__class__ is pos_b.__class__ is rot_b.__class__ is np.ndarray
-            and pos_a.shape == pos_b.shape == (3,)
-            and rot_a.shape == rot_b.shape == (3, 3)
-            and (pos_a.dtype is dt or pos_a.dtype == dt)
-            and (rot_a.dtype is dt or rot_a.dtype == dt)
-            and (pos_b.dtype is dt or pos_b.dtype == dt)
-            and (rot_b.dtype is dt or rot_b.dtype == dt)
-        )
-
-    def _is_transform_pair(self, pos_a, rot_a, pos_b, rot_b, quat_order):
-        """Two (4, 4) ndarrays of the compute dtype, each with a last row of exactly [0, 0, 0, 1], for single
-        prisms (as :func:`~prismbatch.poses.transforms_as_written` leaves them: rotations None)."""
-        if self._a_per or self._b_per or quat_order is not None or rot_a is not None or rot_b is not None:
-            return False
-        return _plain_transform(pos_a, self.dtype) and _plain_transform(pos_b, self.dtype)
-
-    def _ortho_tol(self, rot):
-        """:func:`~prismbatch.poses.ortho_tolerance` of the rotation's own dtype (cached per dtype)."""
-        dt = getattr(rot, "dtype", None)
-        tol = self._ortho_tols.get(dt)
-        if tol is None:
-            dt = np.asarray(rot).dtype
-            tol = ortho_tolerance(dt if dt.kind in "iuf" else np.float64, self.dtype)  # others fail later
-            self._ortho_tols[dt] = tol
-        return tol
-
-    def _pair_array(self, x, shape, name):
-        """``x`` as the one-pair kernel takes it (:func:`_kernel_array`), or a message naming ``name``."""
-        a = np.asarray(x)
-        if a.dtype.kind not in "iuf":
-            raise TypeError(f"{name} must have a real numeric dtype, got {a.dtype}")
-        if a.shape != shape:
-            raise ValueError(
-                f"{name} has shape {a.shape}; collide_pair takes {shape} (use collide for "
-                f"batches, quaternions or transforms)"
-            )
-        return _kernel_array(a, shape, self.dtype)
-
-
-#: Whether the one-pair kernel of a dtype has compiled its one signature and been closed to others.
-_pair_closed = {np.dtype(np.float64): False, np.dtype(np.float32): False}
-_pair_closing = threading.Lock()
-
-
-def _plain_transform(T, dtype):
-    """A (4, 4) ndarray of ``dtype`` whose last row is exactly [0, 0, 0, 1] (the pose check accepts it
-    within a tolerance: the rest take that path)."""
-    return T.__class__ is np.ndarray and T.shape == (4, 4) and T.dtype == dtype and T[3].tolist() == [0, 0, 0, 1]
-
 
 def _as_written(query, pos_a, rot_a, pos_b, rot_b):
     """The poses with two positional 4x4 transforms read as written; TypeError naming ``query`` and the
@@ -524,42 +335,6 @@ def _as_written(query, pos_a, rot_a, pos_b, rot_b):
                 f"{query} needs a pose for {body}: pos_{body} (and rot_{body}, or a 4x4 transform as pos_{body})"
             )
     return pos_a, rot_a, pos_b, rot_b
-
-
-def _kernel_array(x, shape, dtype):
-    """``x`` as a C-contiguous, writeable, aligned array of ``dtype`` (copied only if needed).
-
-    Read-only and unaligned inputs (``np.broadcast_to``, frozen arrays, fields of packed records) are
-    copied: Numba types them apart, so passing them would compile every kernel again (or, to a closed
-    kernel, raise its TypeError).
-    """
-    if type(x) is np.ndarray and x.shape == shape and x.dtype == dtype:  # the common case, at no cost
-        flags = x.flags
-        if flags.c_contiguous and flags.writeable and flags.aligned:
-            return x
-    a = np.ascontiguousarray(np.reshape(x, shape), dtype=dtype)
-    return a if a.flags.writeable and a.flags.aligned else a.copy()
-
-
-def _pair_problem(code, val, ortho_tol, max_magnitude):
-    """The message of a problem code of the one-pair kernel (the same words as :func:`as_pose`)."""
-    body, kind = "ab"[(code - 1) // 4], (code - 1) % 4  # codes 1-4 for a, 5-8 for b
-    if kind == 0:
-        return position_message("pos_" + body, val, max_magnitude)
-    return rotation_message("rot_" + body, kind, val, ortho_tol)  # kinds 1-3 of first_bad_rotation
-
-
-class PairResult(NamedTuple):
-    """Result of :meth:`Collider.collide_pair`: hit, case and contact of one pair."""
-
-    hit: bool
-    case: int
-    contact: np.ndarray
-
-
-#: PairResults are built with tuple.__new__: the class's own __new__ is one more Python call (some
-#: 50 ns of a one-pair query).
-_new_tuple = tuple.__new__
 
 
 def _collision_result(hit, case, contact):
