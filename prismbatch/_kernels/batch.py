@@ -464,11 +464,11 @@ def pair_problem(Pa, Ra, Pb, Rb, ortho_tol_a, ortho_tol_b, max_magnitude):
     # Shapes are checked here, not by the caller: a (2,) position would be read out of bounds.
     if Pa.shape[0] != 3 or Pb.shape[0] != 3 or Ra.shape != (3, 3) or Rb.shape != (3, 3):
         return PAIR_SHAPE_PROBLEM, 0.0
-    for k, P in enumerate((Pa, Pb)):
+    # a's position, a's rotation, then b's: the order in which the batch's pose parser names them
+    for k, (P, R, ortho_tol) in enumerate(((Pa, Ra, ortho_tol_a), (Pb, Rb, ortho_tol_b))):
         for j in range(3):
             if not abs(P[j]) <= max_magnitude:  # also NaN
                 return 1 + 4 * k, np.float64(P[j])
-    for k, (R, ortho_tol) in enumerate(((Ra, ortho_tol_a), (Rb, ortho_tol_b))):
         kind, val = rotation_problem(R, ortho_tol)  # (R may be a strided view: no reshape)
         if kind != 0:
             return 1 + kind + 4 * k, np.float64(val)

@@ -355,3 +355,22 @@ def test_one_pair_inputs_of_another_dtype_are_judged_as_the_batch_judges_them():
     for query in (col.collide_pair, col.collide):
         with pytest.raises(TypeError, match=r"needs a pose for a: pos_a"):
             query(None, None, None, None)
+
+
+def test_one_pair_names_the_first_bad_input_as_the_batch_does():
+    # a's position, a's rotation, then b's: with a bad rot_a and a bad pos_b the one-pair kernel named
+    # pos_b (it checked both positions first), the batch rot_a[0].
+    col = pb.Collider(pb.Prism.regular(4, 1.0), pb.Prism.regular(4, 1.0))
+    I, z = np.eye(3), np.zeros(3)
+    col.collide_pair(z, I, z, I)
+    bad_rot, bad_pos = np.diag([1.0, 1.0, -1.0]), np.array([np.nan, 0.0, 0.0])
+    for args, first in (
+        ((z, bad_rot, bad_pos, I), "rot_a"),
+        ((bad_pos, bad_rot, z, I), "pos_a"),
+        ((z, I, bad_pos, bad_rot), "pos_b"),
+        ((z, I, z, bad_rot), "rot_b"),
+    ):
+        batch = (args[0][None], args[1][None], args[2][None], args[3][None])
+        for query, batched in ((col.collide_pair, False), (col.collide, False), (col.collide, True)):
+            with pytest.raises(ValueError, match="^" + first + (r"\[0\]" if batched else " ")):
+                query(*(batch if batched else args))
