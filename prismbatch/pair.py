@@ -147,11 +147,13 @@ class OnePairQueries:
             and isinstance(rot, np.ndarray)
             and pos.dtype == dt
             and rot.dtype == dt
+            and pos.shape == (3,)
             and rot.shape == (3, 3)
         ):
             # arrays of the compute dtype: checked by the kernel, with messages naming the argument. Others
             # are parsed as the batch parses them (a float64 rotation judged before its rounding to float32,
-            # a float64 position out of float32's range named so, not as the inf it would round to).
+            # a float64 position out of float32's range named so, not as the inf it would round to), and so
+            # are other shapes, whatever their dtype (one message for a (1, 3) position, "a batch of 1").
             f = self._pair_array
             return f(pos, (3,), "pos_" + name), f(rot, (3, 3), "rot_" + name), self._ortho_tol(rot)
         P, R = as_pose(pos, rot, quat_order=quat_order, name=name, dtype=self.dtype)  # checked here

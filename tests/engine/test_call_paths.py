@@ -374,3 +374,22 @@ def test_one_pair_names_the_first_bad_input_as_the_batch_does():
         for query, batched in ((col.collide_pair, False), (col.collide, False), (col.collide, True)):
             with pytest.raises(ValueError, match="^" + first + (r"\[0\]" if batched else " ")):
                 query(*(batch if batched else args))
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32, "list"])
+def test_a_wrong_shape_gets_one_message_whatever_the_dtype(dtype):
+    # The message depended on the dtype: "pos_a has shape (1, 3); collide_pair takes (3,)" for arrays of
+    # the Collider's dtype, "pos_a is a batch of 1" for others.
+    col = pb.Collider(pb.Prism.regular(4, 1.0), pb.Prism.regular(4, 1.0))
+    I, z = np.eye(3), np.zeros(3)
+    col.collide_pair(z, I, z, I)
+
+    def as_given(x):
+        return np.asarray(x).tolist() if dtype == "list" else np.asarray(x, dtype=dtype)
+
+    with pytest.raises(
+        ValueError, match=r"^collide_pair takes one pose per body; pos_a is a batch of 1 \(use collide\)"
+    ):
+        col.collide_pair(as_given(np.zeros((1, 3))), as_given(I), z, I)
+    with pytest.raises(ValueError, match=r"^pos_b has shape \(2,\); expected \(3,\) or \(N, 3\)"):
+        col.collide_pair(z, I, as_given(np.zeros(2)), as_given(I))
