@@ -10,12 +10,11 @@ from ._kernels import batch as _batch
 from ._kernels.projection import CASES
 from .checks import check_flag, real_scalar
 from .config import DEFAULT_RTOL, MAX_RTOL, SUPPORTED_RANGE
-from .pair import OnePairQueries, PairResult, kernel_array, pair_problem_message
+from .pair import OnePairQueries, PairResult, as_written, kernel_array, pair_problem_message
 from .poses import (
     as_pose,
     common_batch_size,
     ortho_tolerance,
-    transforms_as_written,
 )
 from .results import BatchResult
 from .shapes import as_prism_set
@@ -113,8 +112,9 @@ class Collider(OnePairQueries):
         self._a = set_a.kernel_arrays(dt)
         self._b = set_b.kernel_arrays(dt)
         self._eps = float(np.finfo(dt).eps)
-        # Orthonormality tolerance by the input's dtype (the one rule of as_pose).
-        self._ortho_tols = {t: ortho_tolerance(t, dt) for t in (np.dtype(np.float64), np.dtype(np.float32))}
+        # Orthonormality tolerance of poses of the compute dtype, which the one-pair kernels check
+        # (others are parsed by as_pose, with the rule of their own dtype).
+        self._ortho_tol = ortho_tolerance(dt, dt)
         self._pair_kernel = _batch.collide_pair[dt]
         self._bundles = {}  # (ortho_tol_a, ortho_tol_b) -> pair bundle of the one-pair kernels (single prisms)
         # Set by the first one-pair query (which compiles or closes the kernel): the bundle of poses of the
@@ -147,7 +147,7 @@ class Collider(OnePairQueries):
                         "contact=True needs margin=0: a margin hit need not touch (for the nearest points "
                         "use distance(..., witness=True))"
                     )
-                pos_a, rot_a, pos_b, rot_b = _as_written("collide", pos_a, rot_a, pos_b, rot_b)
+                pos_a, rot_a, pos_b, rot_b = as_written("collide", pos_a, rot_a, pos_b, rot_b)
                 n, pa, ra, pb, rb = self._batch_poses(pos_a, rot_a, pos_b, rot_b, quat_order, parallel)
                 hit = run_margin(self._a, self._b, pa, ra, pb, rb, n, margin, self.rtol, self.atol, parallel)
                 return CollisionResult(hit, np.zeros(n, dtype=np.int8))
@@ -162,7 +162,7 @@ class Collider(OnePairQueries):
         ):
             r = self._fast_pair(pos_a, rot_a, pos_b, rot_b, quat_order)
         if r is None:
-            pos_a, rot_a, pos_b, rot_b = _as_written("collide", pos_a, rot_a, pos_b, rot_b)
+            pos_a, rot_a, pos_b, rot_b = as_written("collide", pos_a, rot_a, pos_b, rot_b)
             if self._is_single_pair(pos_a, rot_a, pos_b, rot_b, quat_order) or self._is_transform_pair(
                 pos_a, rot_a, pos_b, rot_b, quat_order
             ):  # (the first one-pair query; two 4x4 transforms)
@@ -191,13 +191,13 @@ class Collider(OnePairQueries):
         """Signed distance of the pose pairs; see :func:`prismbatch.distance` for the arguments."""
         from .distance import one_pair_distance, signed_distance  # distance builds on this module
 
-        pos_a, rot_a, pos_b, rot_b = _as_written("distance", pos_a, rot_a, pos_b, rot_b)
+        pos_a, rot_a, pos_b, rot_b = as_written("distance", pos_a, rot_a, pos_b, rot_b)
         check_flag(witness, "witness")
         check_flag(parallel, "parallel", allow_none=True)
         if self._is_single_pair(pos_a, rot_a, pos_b, rot_b, quat_order):
             # One plain pair: checks and set-up in one compiled call (a controller's query).
             pair = tuple(kernel_array(x, x.shape, self.dtype) for x in (pos_a, rot_a, pos_b, rot_b))
-            ortho = self._ortho_tols[self.dtype]  # the arrays are of the compute dtype
+            ortho = self._ortho_tol  # the arrays are of the compute dtype
             problem, val, res = one_pair_distance(self._pair_bundle(ortho, ortho), pair, self.dtype, witness)
             if problem:
                 raise ValueError(pair_problem_message(problem, val, ortho, self._max_magnitude))
@@ -233,7 +233,7 @@ class Collider(OnePairQueries):
         """First contact of b moving against a; see :func:`prismbatch.motion.time_of_impact` for the arguments."""
         from .motion import impact_times  # motion builds on this module
 
-        pos_a, rot_a, pos_b, rot_b = _as_written("time_of_impact", pos_a, rot_a, pos_b, rot_b)
+        pos_a, rot_a, pos_b, rot_b = as_written("time_of_impact", pos_a, rot_a, pos_b, rot_b)
         check_flag(pose, "pose")
         check_flag(contact, "contact")
         check_flag(parallel, "parallel", allow_none=True)
@@ -323,18 +323,6 @@ class Collider(OnePairQueries):
         out["exit_reason"] = EXITS[out["exit"]]
         out.update(hit=bool(hit), case=int(case), contact=[float(cx), float(cy), float(cz)])
         return out
-
-
-def _as_written(query, pos_a, rot_a, pos_b, rot_b):
-    """The poses with two positional 4x4 transforms read as written; TypeError naming ``query`` and the
-    body without a pose."""
-    pos_a, rot_a, pos_b, rot_b = transforms_as_written(pos_a, rot_a, pos_b, rot_b)
-    for body, pos in (("a", pos_a), ("b", pos_b)):
-        if pos is None:
-            raise TypeError(
-                f"{query} needs a pose for {body}: pos_{body} (and rot_{body}, or a 4x4 transform as pos_{body})"
-            )
-    return pos_a, rot_a, pos_b, rot_b
 
 
 def _collision_result(hit, case, contact):

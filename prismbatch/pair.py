@@ -15,9 +15,9 @@ import numpy as np
 
 from ._kernels import batch as _batch
 from ._kernels.batch import PAIR_SHAPE_PROBLEM
-from .poses import as_pose, ortho_tolerance, position_message, rotation_message, transforms_as_written
+from .poses import as_pose, position_message, rotation_message, transforms_as_written
 
-__all__ = ["PairResult", "OnePairQueries", "kernel_array", "pair_problem_message"]
+__all__ = ["PairResult", "OnePairQueries", "as_written", "kernel_array", "pair_problem_message"]
 
 
 class PairResult(NamedTuple):
@@ -30,7 +30,7 @@ class PairResult(NamedTuple):
 
 class OnePairQueries:
     """The one-pair methods of :class:`~prismbatch.Collider` (which sets the attributes they read: ``dtype``,
-    ``rtol``, ``atol``, ``_eps``, ``_a``, ``_b``, ``_a_per``, ``_b_per``, ``_max_magnitude``, ``_ortho_tols``,
+    ``rtol``, ``atol``, ``_eps``, ``_a``, ``_b``, ``_a_per``, ``_b_per``, ``_max_magnitude``, ``_ortho_tol``,
     ``_pair_kernel``, ``_bundles`` and ``_fast_bundle``)."""
 
     def collide_pair(self, pos_a, rot_a=None, pos_b=None, rot_b=None, *, quat_order=None):
@@ -91,7 +91,7 @@ class OnePairQueries:
         if problem:
             if problem == PAIR_SHAPE_PROBLEM:  # the converted path says which pose has which shape
                 return None
-            raise ValueError(pair_problem_message(problem, out[1], self._ortho_tols[self.dtype], self._max_magnitude))
+            raise ValueError(pair_problem_message(problem, out[1], self._ortho_tol, self._max_magnitude))
         return _new_tuple(PairResult, (out[2], out[3], contact))
 
     def _pair_bundle(self, ortho_tol_a, ortho_tol_b):
@@ -107,12 +107,7 @@ class OnePairQueries:
         """:meth:`collide_pair` with its arguments checked and converted (and the first call)."""
         if self._a_per or self._b_per:
             raise TypeError("collide_pair needs single Prism shapes, not PrismSets")
-        pos_a, rot_a, pos_b, rot_b = transforms_as_written(pos_a, rot_a, pos_b, rot_b)
-        for body, pos in (("a", pos_a), ("b", pos_b)):
-            if pos is None:
-                raise TypeError(
-                    f"collide_pair needs a pose for {body}: pos_{body} and rot_{body}, or two 4x4 transforms"
-                )
+        pos_a, rot_a, pos_b, rot_b = as_written("collide_pair", pos_a, rot_a, pos_b, rot_b)
         if self._is_transform_pair(pos_a, rot_a, pos_b, rot_b, quat_order):
             # Two 4x4 transforms of the compute dtype: their blocks go to the kernel as views. A pose it
             # rejects is checked again below, for the message that names the transform.
@@ -131,8 +126,7 @@ class OnePairQueries:
                     _batch.close_pair_kernel(self.dtype)
                     _pair_closed[self.dtype] = True
         out = self._pair_kernel(self._pair_bundle(ta, tb), Pa, Ra, Pb, Rb, contact)
-        ortho = self._ortho_tols[self.dtype]
-        self._fast_bundle = self._pair_bundle(ortho, ortho)
+        self._fast_bundle = self._pair_bundle(self._ortho_tol, self._ortho_tol)
         problem, val = out[0], out[1]
         if problem:
             raise ValueError(pair_problem_message(problem, val, ta if problem <= 4 else tb, self._max_magnitude))
@@ -154,8 +148,7 @@ class OnePairQueries:
             # are parsed as the batch parses them (a float64 rotation judged before its rounding to float32,
             # a float64 position out of float32's range named so, not as the inf it would round to), and so
             # are other shapes, whatever their dtype (one message for a (1, 3) position, "a batch of 1").
-            f = self._pair_array
-            return f(pos, (3,), "pos_" + name), f(rot, (3, 3), "rot_" + name), self._ortho_tol(rot)
+            return kernel_array(pos, (3,), dt), kernel_array(rot, (3, 3), dt), self._ortho_tol
         P, R = as_pose(pos, rot, quat_order=quat_order, name=name, dtype=self.dtype)  # checked here
         if P.shape != (3,) or R.shape != (3, 3):
             n = R.shape[0] if R.ndim == 3 else P.shape[0]
@@ -187,16 +180,6 @@ class OnePairQueries:
             return False
         return _plain_transform(pos_a, self.dtype) and _plain_transform(pos_b, self.dtype)
 
-    def _ortho_tol(self, rot):
-        """:func:`~prismbatch.poses.ortho_tolerance` of the rotation's own dtype (cached per dtype)."""
-        dt = getattr(rot, "dtype", None)
-        tol = self._ortho_tols.get(dt)
-        if tol is None:
-            dt = np.asarray(rot).dtype
-            tol = ortho_tolerance(dt if dt.kind in "iuf" else np.float64, self.dtype)  # others fail later
-            self._ortho_tols[dt] = tol
-        return tol
-
     def _pair_array(self, x, shape, name):
         """``x`` as the one-pair kernel takes it (:func:`kernel_array`), or a message naming ``name``."""
         a = np.asarray(x)
@@ -213,6 +196,18 @@ class OnePairQueries:
 #: Whether the one-pair kernel of a dtype has compiled its one signature and been closed to others.
 _pair_closed = {np.dtype(np.float64): False, np.dtype(np.float32): False}
 _pair_closing = threading.Lock()
+
+
+def as_written(query, pos_a, rot_a, pos_b, rot_b):
+    """The poses with two positional 4x4 transforms read as written
+    (:func:`~prismbatch.poses.transforms_as_written`); TypeError naming ``query`` and the body without a pose."""
+    pos_a, rot_a, pos_b, rot_b = transforms_as_written(pos_a, rot_a, pos_b, rot_b)
+    for body, pos in (("a", pos_a), ("b", pos_b)):
+        if pos is None:
+            raise TypeError(
+                f"{query} needs a pose for {body}: pos_{body} (and rot_{body}, or a 4x4 transform as pos_{body})"
+            )
+    return pos_a, rot_a, pos_b, rot_b
 
 
 def _plain_transform(T, dtype):

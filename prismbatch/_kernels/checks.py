@@ -74,8 +74,8 @@ def first_bad_rotation(Rb, tol):
     matrix without branches and classifies only the first it rejects.
     """
     for i in range(Rb.shape[0]):
-        if not _rotation_ok(Rb[i], tol):
-            kind, val = _rotation_problem(Rb[i], tol)
+        kind, val = rotation_problem(Rb[i], tol)
+        if kind != 0:
             return i, kind, val
     return -1, 0, 0.0
 
