@@ -58,10 +58,10 @@ from prismbatch._kernels.batch import (
 )
 from prismbatch._kernels.planar import extreme_vertex, point_polygon_distance
 from prismbatch._kernels.projection import surely_above, surely_above_by_radius
-from prismbatch.collide import PairResult
 from prismbatch.config import SUPPORTED_RANGE
 from prismbatch.lab.report import fmt
 from prismbatch.lab.timing import stats, threads, timed_loops
+from prismbatch.pair import HIT_CASE, PairResult
 from prismbatch.poses import ortho_tolerance
 from prismbatch.sampling import facing_poses
 
@@ -198,7 +198,7 @@ def latency_steps(repeats):
         "+ the result tuple": lambda: (
             (c := np.empty(3)),
             (o := kernel(bundle, *one, c)),
-            PairResult(o[2], o[3], c),
+            PairResult(*HIT_CASE[o], c),
         ),
         "Collider.collide_pair": lambda: col.collide_pair(*one),
     }

@@ -15,9 +15,10 @@ import numpy as np
 
 from ._kernels import batch as _batch
 from ._kernels.batch import PAIR_SHAPE_PROBLEM
+from ._kernels.projection import CASES
 from .poses import as_pose, position_message, rotation_message, transforms_as_written
 
-__all__ = ["PairResult", "OnePairQueries", "as_written", "kernel_array", "pair_problem_message"]
+__all__ = ["PairResult", "OnePairQueries", "HIT_CASE", "as_written", "kernel_array", "pair_problem_message"]
 
 
 class PairResult(NamedTuple):
@@ -84,15 +85,14 @@ class OnePairQueries:
             return None
         contact = _empty(3)
         try:
-            out = self._pair_kernel(bundle, pos_a, rot_a, pos_b, rot_b, contact)
+            code = self._pair_kernel(bundle, pos_a, rot_a, pos_b, rot_b, contact)
         except TypeError:  # another dtype or layout, a read-only array, not an array
             return None
-        problem = out[0]
-        if problem:
-            if problem == PAIR_SHAPE_PROBLEM:  # the converted path says which pose has which shape
-                return None
-            raise ValueError(pair_problem_message(problem, out[1], self._ortho_tol, self._max_magnitude))
-        return _new_tuple(PairResult, (out[2], out[3], contact))
+        if code >= 0:
+            return _new_tuple(PairResult, HIT_CASE[code] + (contact,))
+        if code == -PAIR_SHAPE_PROBLEM:  # the converted path says which pose has which shape
+            return None
+        raise ValueError(pair_problem_message(-code, contact[0], self._ortho_tol, self._max_magnitude))
 
     def _pair_bundle(self, ortho_tol_a, ortho_tol_b):
         """The one-pair kernels' bundle (shapes and scalars) for these orthonormality tolerances (cached)."""
@@ -125,12 +125,11 @@ class OnePairQueries:
                 if not _pair_closed[self.dtype]:
                     _batch.close_pair_kernel(self.dtype)
                     _pair_closed[self.dtype] = True
-        out = self._pair_kernel(self._pair_bundle(ta, tb), Pa, Ra, Pb, Rb, contact)
+        code = self._pair_kernel(self._pair_bundle(ta, tb), Pa, Ra, Pb, Rb, contact)
         self._fast_bundle = self._pair_bundle(self._ortho_tol, self._ortho_tol)
-        problem, val = out[0], out[1]
-        if problem:
-            raise ValueError(pair_problem_message(problem, val, ta if problem <= 4 else tb, self._max_magnitude))
-        return _new_tuple(PairResult, (out[2], out[3], contact))
+        if code < 0:
+            raise ValueError(pair_problem_message(-code, contact[0], ta if -code <= 4 else tb, self._max_magnitude))
+        return _new_tuple(PairResult, HIT_CASE[code] + (contact,))
 
     def _one_pose(self, pos, rot, quat_order, name):
         """``(P, R, orthonormality tolerance)`` of one body's pose for the one-pair kernel."""
@@ -243,3 +242,6 @@ def pair_problem_message(code, val, ortho_tol, max_magnitude):
 #: 50 ns of a one-pair query).
 _new_tuple = tuple.__new__
 _empty, _ndarray = np.empty, np.ndarray  # (module globals: one attribute lookup less in a one-pair query)
+#: ``(hit, case)`` of each return ``2 * case + hit`` of the one-pair kernel (a lookup costs less than the
+#: arithmetic).
+HIT_CASE = tuple((bool(code & 1), code >> 1) for code in range(2 * (max(CASES) + 1)))

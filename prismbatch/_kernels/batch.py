@@ -523,21 +523,22 @@ def pair_scalars(scalars):
 def _collide_pair(bundle, Pa, Ra, Pb, Rb, contact):
     """One pair, with its input checks compiled in (the low-latency path).
 
-    ``bundle``: :func:`pair_bundle`. Returns (problem, value, hit, case) and writes the contact
+    ``bundle``: :func:`pair_bundle`. Returns one int, ``2 * case + hit``, and writes the contact
     point (NaN if no hit) into ``contact``, a float64 (3,) array: the caller's ``np.empty(3)``
-    costs a third of building the array from three returned floats. ``problem`` 0 means the
-    inputs are valid; otherwise it names the first bad input (see collide._pair_problem) and
-    ``value`` gives the offending number (``contact`` is then not written).
+    costs a third of building the array from three returned floats, and one returned int costs
+    less than a tuple. A negative return is minus a problem code (the first bad input, see
+    :func:`pair_problem`); the offending number is then ``contact[0]``.
     """
     a_floats, a_ints, b_floats, b_ints, scalars = unbundle(bundle, Pa)
     rtol, atol, eps, ortho_tol_a, ortho_tol_b, max_magnitude = pair_scalars(scalars)
     problem, val = pair_problem(Pa, Ra, Pb, Rb, ortho_tol_a, ortho_tol_b, max_magnitude)
     if problem:
-        return problem, val, False, 0
+        contact[0] = val
+        return -problem
     a, b = unpack(a_floats, a_ints), unpack(b_floats, b_ints)
     hit, case, cx, cy, cz = pair_of_sets(a, b, 0, 0, Pa, Ra, None, Pb, Rb, rtol, atol, eps, None)
     contact[0], contact[1], contact[2] = cx, cy, cz
-    return 0, 0.0, hit, case
+    return 2 * case + hit
 
 
 #: The one-pair kernel, one compiled copy per dtype. Each is compiled for one signature
