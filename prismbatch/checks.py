@@ -17,6 +17,7 @@ __all__ = [
     "check_memory",
     "format_bytes",
     "as_real_array",
+    "refuse_masked",
     "real_scalar",
     "check_flag",
     "indexed_name",
@@ -87,8 +88,22 @@ def indexed_name(name: str, i: int | None) -> str:
     return name if i is None else f"{name}[{i}]"
 
 
+def refuse_masked(x, name: str) -> None:
+    """ValueError if ``x`` is a numpy masked array with masked entries.
+
+    ``np.asarray`` drops the mask and keeps the values under it, so a masked pose or vertex would be
+    computed with as if it were data. An unmasked ``MaskedArray`` is read as its data.
+    """
+    if isinstance(x, np.ma.MaskedArray) and np.ma.is_masked(x):
+        raise ValueError(
+            f"{name} has masked entries (numpy.ma), which would be read as the values under the mask; pass "
+            f"a plain array of the values you mean (np.ma.compress_rows drops masked rows, .filled(v) fills them)"
+        )
+
+
 def as_real_array(x, name: str) -> np.ndarray:
-    """``np.asarray`` that rejects non-real-numeric data with a named error."""
+    """``np.asarray`` that rejects non-real-numeric data and masked entries with a named error."""
+    refuse_masked(x, name)
     try:
         arr = np.asarray(x)
     except ValueError as exc:
@@ -111,6 +126,7 @@ def real_scalar(x, name: str, lo: float = -_FLOAT_MAX, hi: float = _FLOAT_MAX) -
     other non-numbers, ValueError for arrays of another shape, NaN, inf and
     values out of range.
     """
+    refuse_masked(x, name)
     a = None if isinstance(x, (str, bytes, bool, np.bool_)) else np.asarray(x)
     if a is None or a.dtype.kind not in "iuf":
         raise TypeError(f"{name} must be a real number, got {type(x).__name__} {x!r}")

@@ -40,7 +40,7 @@ from ._kernels.motion import (
     toi_rerun_serial,
     toi_serial,
 )
-from .checks import integer
+from .checks import integer, refuse_masked
 from .collide import collider_for
 from .results import BatchResult
 
@@ -309,6 +309,7 @@ def _vectors(x, name):
     """(m, 3) float64 C-contiguous rows from (3,) or (m, 3), finite; TypeError / ValueError naming ``name``."""
     if x is None:
         raise TypeError(f"time_of_impact needs {name}: a (3,) or (N, 3) array")
+    refuse_masked(x, name)
     a = None if isinstance(x, (str, bytes)) else np.asarray(x)
     if a is None or a.dtype.kind not in "iuf":
         raise TypeError(f"{name} must be a real (3,) or (N, 3) array, got {type(x).__name__}")
@@ -325,6 +326,7 @@ def _vectors(x, name):
 
 def _horizons(x):
     """(m,) float64 horizons, finite and > 0."""
+    refuse_masked(x, "horizon")
     a = None if isinstance(x, (str, bytes, bool, np.bool_)) else np.asarray(x)
     if a is None or a.dtype.kind not in "iuf":
         raise TypeError(f"horizon must be a real number or (N,) array, got {type(x).__name__} {x!r}")

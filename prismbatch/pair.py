@@ -136,8 +136,7 @@ class OnePairQueries:
         dt = self.dtype
         if (
             quat_order is None
-            and isinstance(pos, np.ndarray)
-            and isinstance(rot, np.ndarray)
+            and pos.__class__ is rot.__class__ is np.ndarray  # (subclasses, e.g. masked arrays, are parsed)
             and pos.dtype == dt
             and rot.dtype == dt
             and pos.shape == (3,)

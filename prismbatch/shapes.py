@@ -18,7 +18,7 @@ import numpy as np
 
 from ._kernels.batch import pack, unpack
 from ._kernels.planar import edge_search_tables_each
-from .checks import check_memory, format_bytes, real_scalar
+from .checks import check_memory, format_bytes, real_scalar, refuse_masked
 from .config import MAX_VERTICES, MIN_RELATIVE_AREA, MIN_RELATIVE_EDGE, SUPPORTED_RANGE
 from .geometry import exact_area2
 
@@ -92,6 +92,7 @@ def validate_polygon(xy, *, name="polygon"):
 
 def _read_polygon(xy, name):
     """``xy`` as an (n, 2) float64 array of finite vertices, n >= 3, a closing repeat dropped."""
+    refuse_masked(xy, name)
     try:
         arr = np.asarray(xy)
     except ValueError as exc:  # ragged nested lists
@@ -478,7 +479,8 @@ def _build_prisms(polygons):
     for k, p in enumerate(polygons):
         if prisms[k] is None:
             try:
-                arr = np.asarray(p) if isinstance(p, (np.ndarray, list, tuple)) else None
+                plain = isinstance(p, (np.ndarray, list, tuple)) and not isinstance(p, np.ma.MaskedArray)
+                arr = np.asarray(p) if plain else None  # (others, masked arrays too, are read one by one)
             except ValueError:  # ragged: _read_polygon words the error
                 arr = None
             if (

@@ -180,3 +180,52 @@ def test_accepted_pose_forms_agree():
     for r in forms:
         np.testing.assert_array_equal(r.hit, ref.hit)
         np.testing.assert_array_equal(r.case, ref.case)
+
+
+def _masked(x, k):
+    """``x`` as a numpy masked array whose flat entry ``k`` is masked (its value is kept under the mask)."""
+    m = np.zeros(np.shape(x), dtype=bool)
+    m.flat[k] = True
+    return np.ma.array(x, mask=m)
+
+
+_A, _B = pb.Prism.regular(6, 2.0), pb.Prism.regular(6, 2.5)
+_COL = pb.Collider(_A, _B)
+_P, _R = np.zeros(3), np.eye(3)
+_FAR = np.array([0.0, 0.0, 5.0])  # the value under a mask (a miss if read, as np.asarray would)
+
+MASKED_CALLS = {
+    "collide_pair pos_b": (lambda m: _COL.collide_pair(_P, _R, m(_FAR, 2), _R), "pos_b"),
+    "collide_pair rot_a": (lambda m: _COL.collide_pair(_P, m(_R, 1), _FAR, _R), "rot_a"),
+    "Collider.collide": (lambda m: _COL.collide(_P, _R, m(_FAR, 2), _R), "pos_b"),
+    "pb.collide batch": (lambda m: pb.collide(_A, _B, m(np.zeros((2, 3)), 4), _R, _FAR, _R), "pos_a"),
+    "4x4 transform": (lambda m: pb.collide(_A, _B, m(np.eye(4), 3), np.eye(4)), "pose_a"),
+    "distance": (lambda m: pb.distance(_A, _B, _P, _R, m(_FAR, 0), _R), "pos_b"),
+    "explain": (lambda m: _COL.explain(_P, _R, m(_FAR, 2), _R), "pos_b"),
+    "time_of_impact velocity": (
+        lambda m: pb.time_of_impact(_A, _B, _P, _R, _FAR, _R, m(np.array([0.0, 0.0, -1.0]), 2), horizon=10.0),
+        "velocity",
+    ),
+    "Prism vertices": (lambda m: pb.Prism(m(np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]), 3)), "prism"),
+    "PrismSet polygon": (lambda m: pb.PrismSet([_A.xy, m(_B.xy, 0)]), "polygon 1"),
+    "rtol": (lambda m: pb.Collider(_A, _B, rtol=np.ma.masked), "rtol"),
+}
+
+
+@pytest.mark.parametrize("call", MASKED_CALLS.values(), ids=MASKED_CALLS.keys())
+def test_masked_entries_are_refused_not_read(call):
+    """Nothing is repaired silently: np.asarray keeps the values under a mask, so a masked entry is an
+    error naming the argument; the same call on the unmasked data succeeds (a MaskedArray without
+    masked entries is read as its data)."""
+    f, name = call
+    with pytest.raises(ValueError, match=f"^{name} has masked entries"):
+        f(_masked)
+    if name != "rtol":
+        f(lambda x, k: np.ma.array(x))  # no entry masked: accepted
+
+
+def test_unmasked_masked_array_answers_as_its_data():
+    plain = _COL.collide_pair(_P, _R, np.array([0.0, 0.0, 0.5]), _R)
+    as_ma = _COL.collide_pair(_P, _R, np.ma.array([0.0, 0.0, 0.5]), np.ma.array(_R))
+    assert (plain.hit, plain.case) == (as_ma.hit, as_ma.case)
+    np.testing.assert_array_equal(plain.contact, as_ma.contact)
