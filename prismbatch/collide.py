@@ -275,10 +275,12 @@ class Collider(OnePairQueries):
         ra, rb = kernel_array(ra, (-1, 3, 3), dt), kernel_array(rb, (-1, 3, 3), dt)
         return n, pa, ra, pb, rb
 
-    def explain(self, pos_a, rot_a, pos_b, rot_b):
+    def explain(self, pos_a, rot_a=None, pos_b=None, rot_b=None, *, quat_order=None):
         """Step-by-step record of how one pose pair is decided (for ``prismbatch replay``).
 
-        Runs the same compiled test as :meth:`collide_pair` with tracing on.
+        Runs the same compiled test as :meth:`collide_pair` with tracing on, on
+        the same pose forms (a position with a rotation in any form, or two 4x4
+        transforms: ``explain(T_a, T_b)``).
 
         Returns
         -------
@@ -293,14 +295,10 @@ class Collider(OnePairQueries):
 
         if self._a_per or self._b_per:
             raise TypeError("explain needs single Prism shapes, not PrismSets")
-        self.collide_pair(pos_a, rot_a, pos_b, rot_b)  # the same input checks
-        f = self._pair_array
-        Pa, Ra, Pb, Rb = (
-            f(pos_a, (3,), "pos_a"),
-            f(rot_a, (3, 3), "rot_a"),
-            f(pos_b, (3,), "pos_b"),
-            f(rot_b, (3, 3), "rot_b"),
-        )
+        self.collide_pair(pos_a, rot_a, pos_b, rot_b, quat_order=quat_order)  # the same input checks
+        pos_a, rot_a, pos_b, rot_b = as_written("explain", pos_a, rot_a, pos_b, rot_b)
+        Pa, Ra, _ = self._one_pose(pos_a, rot_a, quat_order, "a")
+        Pb, Rb, _ = self._one_pose(pos_b, rot_b, quat_order, "b")
         trace = np.full(TRACE_SIZE, np.nan)
         a, b = self._a, self._b
         hit, case, cx, cy, cz = _batch.pair_world(

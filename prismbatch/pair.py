@@ -178,18 +178,6 @@ class OnePairQueries:
             return False
         return _plain_transform(pos_a, self.dtype) and _plain_transform(pos_b, self.dtype)
 
-    def _pair_array(self, x, shape, name):
-        """``x`` as the one-pair kernel takes it (:func:`kernel_array`), or a message naming ``name``."""
-        a = np.asarray(x)
-        if a.dtype.kind not in "iuf":
-            raise TypeError(f"{name} must have a real numeric dtype, got {a.dtype}")
-        if a.shape != shape:
-            raise ValueError(
-                f"{name} has shape {a.shape}; collide_pair takes {shape} (use collide for "
-                f"batches, quaternions or transforms)"
-            )
-        return kernel_array(a, shape, self.dtype)
-
 
 #: Whether the one-pair kernel of a dtype has compiled its one signature and been closed to others.
 _pair_closed = {np.dtype(np.float64): False, np.dtype(np.float32): False}

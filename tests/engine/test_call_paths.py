@@ -40,6 +40,37 @@ def test_one_pair_paths_equal_the_batch(name, seed):
         assert col.explain(ps.pos_a[k], ps.rot_a[k], ps.pos_b[k], ps.rot_b[k])["hit"] == batch.hit[k]
 
 
+def test_explain_takes_every_pose_form_collide_pair_takes():
+    """explain on two 4x4 transforms, on quaternions and on float32 arrays records the same decision
+    as on the matrices (each form converted as collide_pair converts it)."""
+    from scipy.spatial.transform import Rotation
+
+    ps = make_family("facing", 24, 5)
+    col = pb.Collider(pb.Prism(ps.xy_a[0]), pb.Prism(ps.xy_b[0]))
+    for k in range(0, 24, 3):
+        pa, ra, pb_, rb = ps.pos_a[k], ps.rot_a[k], ps.pos_b[k], ps.rot_b[k]
+        want = col.explain(pa, ra, pb_, rb)
+        Ta, Tb = np.eye(4), np.eye(4)
+        Ta[:3, :3], Ta[:3, 3], Tb[:3, :3], Tb[:3, 3] = ra, pa, rb, pb_
+        same = col.explain(Ta, Tb)
+        assert same.keys() == want.keys()
+        for f in want:  # every traced field, NaN where the test never got there
+            np.testing.assert_array_equal(same[f], want[f], err_msg=f)
+        quat = col.explain(
+            pa, Rotation.from_matrix(ra).as_quat(), pb_, Rotation.from_matrix(rb).as_quat(), quat_order="xyzw"
+        )
+        pair = col.collide_pair(
+            pa, Rotation.from_matrix(ra).as_quat(), pb_, Rotation.from_matrix(rb).as_quat(), quat_order="xyzw"
+        )
+        assert (quat["hit"], quat["case"]) == (pair.hit, pair.case)
+        np.testing.assert_array_equal(quat["contact"], pair.contact)
+        f32 = tuple(x.astype(np.float32) for x in (pa, ra, pb_, rb))
+        pair32 = col.collide_pair(*f32)
+        e32 = col.explain(*f32)
+        assert (e32["hit"], e32["case"]) == (pair32.hit, pair32.case)
+        np.testing.assert_array_equal(e32["contact"], pair32.contact)
+
+
 @SETTINGS
 @given(name=st.sampled_from(sorted(FAMILIES)), seed=st.integers(0, 2**31 - 1))
 def test_serial_equals_parallel_and_strided_equals_contiguous(name, seed):
