@@ -10,7 +10,8 @@ by 1e-2 .. 1 of the size; touching, within a tenth of the tolerance; gaps of
 stand-ins of the prisms, long enough not to matter (``peers.standin_length``,
 doubled), and are timed per query in a Python loop, as users call them;
 prismbatch is timed per pair on one thread (``parallel=False``), with and
-without witness points. The distance error against coal is reported in units
+without witness points, and one query at a time (``Collider.distance`` on one
+pair in a Python loop, as the peers are timed). The distance error against coal is reported in units
 of the pair's tolerance, per bucket, against coal's depth with an EPA tolerance of
 1e-12 (with its default, timed here as users call it, coal's depth was off by up to
 about 1e-4 of the scene) and its gap with its defaults (a tight GJK tolerance made it
@@ -71,8 +72,11 @@ def bucket_rows(n_vertices, n_pairs, repeats, rng, peers):
             row = {"vertices": n_vertices, "family": family, "bucket": bucket, "pairs": n, "standin_length": L}
             ref = pb.distance(a, b, *P)
             S = RADIUS_A + RADIUS_B
+            one_by_one = list(zip(*P))  # each pair's (3,) and (3, 3) rows
             calls = {  # interleaved in one loop: their ratios share the machine's state
                 "pb": lambda P=P: pb.distance(a, b, *P, parallel=False),
+                # one query at a time in a Python loop, as the peers are timed (a controller's use)
+                "pb_one": lambda one_by_one=one_by_one: [col.distance(*pair) for pair in one_by_one],
                 "pb_witness": lambda P=P: pb.distance(a, b, *P, witness=True, parallel=False),
                 "collide": lambda P=P: col.collide(*P, parallel=False),
             }
@@ -119,15 +123,16 @@ def _peers(fcl):
 
 
 def markdown(rows, peers):
-    head = ["n", "poses", "bucket", "pairs", "prismbatch µs", "+ witness µs", "collide µs"]
+    head = ["n", "poses", "bucket", "pairs", "prismbatch µs", "+ witness µs", "one query µs", "collide µs"]
     for frac in MARGINS:
         head += [f"margin {frac:g} S µs", "/ collide", "distance /"]
     head += ["margin wrong"]
     for p in peers:
-        head += [f"{p} µs", f"{p} / prismbatch", f"max |pb - {p}| / tol", f"{p} > 10 tol"]
+        head += [f"{p} µs", f"{p} / prismbatch", f"{p} / one query", f"max |pb - {p}| / tol", f"{p} > 10 tol"]
     L = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for r in rows:
         cells = [r["vertices"], r["family"], r["bucket"], r["pairs"], fmt(r["pb_us"]), fmt(r["pb_witness_us"])]
+        cells += [fmt(r["pb_one_us"])]
         cells += [fmt(r["collide_us"])]
         for frac in MARGINS:
             t = r[f"margin_{frac:g}_us"]
@@ -136,11 +141,12 @@ def markdown(rows, peers):
         cells += [r["margin_disagree"]]
         for p in peers:
             if f"{p}_us" not in r:
-                cells += ["-", "-", "-", "-"]
+                cells += ["-", "-", "-", "-", "-"]
                 continue
             cells += [
                 fmt(r[f"{p}_us"]),
                 fmt(r[f"{p}_us"] / r["pb_us"]),
+                fmt(r[f"{p}_us"] / r["pb_one_us"]),
                 fmt(r[f"err_vs_{p}_max_tol"], none="inf"),
                 fmt(r[f"{p}_over_10_tol"]),
             ]

@@ -7,16 +7,17 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._kernels import batch as _batch
+from ._kernels.distance_pair import distance_pair
 from ._kernels.projection import CASES
 from .checks import check_flag, real_scalar
 from .config import DEFAULT_RTOL, MAX_RTOL, SUPPORTED_RANGE
-from .pair import OnePairQueries, PairResult, as_written, kernel_array, pair_problem_message
+from .pair import OnePairQueries, PairResult, as_written, kernel_array
 from .poses import (
     as_pose,
     common_batch_size,
     ortho_tolerance,
 )
-from .results import BatchResult
+from .results import BatchResult, new_result
 from .shapes import as_prism_set
 
 __all__ = [
@@ -116,6 +117,8 @@ class Collider(OnePairQueries):
         # (others are parsed by as_pose, with the rule of their own dtype).
         self._ortho_tol = ortho_tolerance(dt, dt)
         self._pair_kernel = _batch.collide_pair[dt]
+        self._distance_kernel = distance_pair[dt]
+        self._distance_fast = None  # (kernel, bundle, result builder), set by the first one-pair distance
         self._bundles = {}  # (ortho_tol_a, ortho_tol_b) -> pair bundle of the one-pair kernels (single prisms)
         # Set by the first one-pair query (which compiles or closes the kernel): the bundle of poses of the
         # compute dtype, which the fast path takes as they are.
@@ -189,19 +192,18 @@ class Collider(OnePairQueries):
 
     def distance(self, pos_a, rot_a=None, pos_b=None, rot_b=None, *, witness=False, quat_order=None, parallel=None):
         """Signed distance of the pose pairs; see :func:`prismbatch.distance` for the arguments."""
-        from .distance import one_pair_distance, signed_distance  # distance builds on this module
+        # One plain pair: checks and set-up in one compiled call (a controller's query).
+        res = self._fast_distance(pos_a, rot_a, pos_b, rot_b, witness, quat_order, parallel)
+        if res is not None:
+            return res
+        from .distance import signed_distance  # distance builds on this module
 
         pos_a, rot_a, pos_b, rot_b = as_written("distance", pos_a, rot_a, pos_b, rot_b)
         check_flag(witness, "witness")
         check_flag(parallel, "parallel", allow_none=True)
         if self._is_single_pair(pos_a, rot_a, pos_b, rot_b, quat_order):
-            # One plain pair: checks and set-up in one compiled call (a controller's query).
-            pair = tuple(kernel_array(x, x.shape, self.dtype) for x in (pos_a, rot_a, pos_b, rot_b))
-            ortho = self._ortho_tol  # the arrays are of the compute dtype
-            problem, val, res = one_pair_distance(self._pair_bundle(ortho, ortho), pair, self.dtype, witness)
-            if problem:
-                raise ValueError(pair_problem_message(problem, val, ortho, self._max_magnitude))
-            return res
+            pair = (kernel_array(x, x.shape, self.dtype) for x in (pos_a, rot_a, pos_b, rot_b))
+            return self._pair_distance(*pair, witness)
         poses = self._batch_poses(pos_a, rot_a, pos_b, rot_b, quat_order, parallel)
         return signed_distance(
             self._a,
@@ -324,14 +326,10 @@ class Collider(OnePairQueries):
 
 
 def _collision_result(hit, case, contact):
-    """``CollisionResult(hit, case, contact)`` without the frozen dataclass's ``__init__``, which sets each
-    field through ``object.__setattr__`` (some 0.3 µs of a one-pair query)."""
-    r = _object_new(CollisionResult)
-    r.__dict__.update(hit=hit, case=case, _contact=contact)
-    return r
+    """``CollisionResult(hit, case, contact)``, built fast (:func:`~prismbatch.results.new_result`)."""
+    return new_result(CollisionResult, {"hit": hit, "case": case, "_contact": contact})
 
 
-_object_new = object.__new__
 _empty, _ndarray = np.empty, np.ndarray  # (module globals: one attribute lookup less in a one-pair query)
 
 

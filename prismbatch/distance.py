@@ -33,10 +33,9 @@ from ._kernels.distance import (
     rerun_serial,
     workspace,
 )
-from ._kernels.distance_pair import distance_pair
 from ._kernels.jit import first_call
 from .collide import collider_for
-from .results import BatchResult
+from .results import BatchResult, new_result
 
 __all__ = ["distance", "signed_distance", "DistanceResult", "STATUS", "SOLVERS", "SEPARATED", "TOUCHING", "PENETRATING"]
 
@@ -189,32 +188,21 @@ def distance(
     return col.distance(pos_a, rot_a, pos_b, rot_b, witness=witness, quat_order=quat_order, parallel=parallel)
 
 
-def one_pair_distance(bundle, pair, dtype, witness):
-    """:func:`distance` of one pair whose poses are C-contiguous (3,) and (3, 3) arrays of ``dtype``.
+def pair_distance_result(out, witness):
+    """The :class:`DistanceResult` of one pair from the one-pair kernel's output
+    (``prismbatch._kernels.distance_pair``; problem 0): each field an array of one pair."""
+    _, _, d, t, status, code, n, p, q = out
+    dist, tol, st, solver = _empty(1), _empty(1), _empty(1, _int8), _empty(1, _int8)
+    dist[0], tol[0], st[0], solver[0] = d, t, status, code
+    fields = {"distance": dist, "status": st, "tol": tol, "solver": solver}
+    if witness:
+        w = _empty((3, 1, 3))  # normal, point_a and point_b: one allocation
+        w[0, 0], w[1, 0], w[2, 0] = n, p, q
+        fields.update(_normal=w[0], _point_a=w[1], _point_b=w[2])
+    return new_result(DistanceResult, fields)
 
-    Parameters
-    ----------
-    bundle : numpy.ndarray
-        The packed single prisms and the scalars ``(rtol, atol, eps, ortho_tol_a, ortho_tol_b,
-        max_magnitude)``, as ``collide_pair`` takes them (``prismbatch._kernels.batch.pair_bundle``).
-    dtype : numpy.dtype
-    witness : bool
 
-    Returns
-    -------
-    tuple
-        ``(problem, value, result)``: problem 0 and the :class:`DistanceResult`
-        of one pair, or the code and offending value of the first bad input
-        (as ``collide_pair``'s) and None.
-    """
-    kern = distance_pair[np.dtype(dtype)]
-    problem, val, d, t, status, code, n, p, q = first_call(kern, kern, bundle, *pair, bool(witness))
-    if problem:
-        return problem, val, None
-    head = (np.array([d]), np.array([status], np.int8), np.array([t]), np.array([code], np.int8))
-    if not witness:
-        return 0, 0.0, DistanceResult(*head)
-    return 0, 0.0, DistanceResult(*head, np.array([n]), np.array([p]), np.array([q]))
+_empty, _int8 = np.empty, np.int8
 
 
 def signed_distance(a_arrays, b_arrays, n, pos_a, rot_a, pos_b, rot_b, *, rtol, atol, dtype, witness, parallel):

@@ -14,7 +14,8 @@ from typing import NamedTuple
 import numpy as np
 
 from ._kernels import batch as _batch
-from ._kernels.batch import PAIR_SHAPE_PROBLEM
+from ._kernels.batch import CONTACT_TYPE, PAIR_SHAPE_PROBLEM, close_kernel, pair_signature
+from ._kernels.distance_pair import WITNESS_TYPE, distance_pair
 from ._kernels.projection import CASES
 from .poses import as_pose, position_message, rotation_message, transforms_as_written
 
@@ -32,7 +33,7 @@ class PairResult(NamedTuple):
 class OnePairQueries:
     """The one-pair methods of :class:`~prismbatch.Collider` (which sets the attributes they read: ``dtype``,
     ``rtol``, ``atol``, ``_eps``, ``_a``, ``_b``, ``_a_per``, ``_b_per``, ``_max_magnitude``, ``_ortho_tol``,
-    ``_pair_kernel``, ``_bundles`` and ``_fast_bundle``)."""
+    ``_pair_kernel``, ``_distance_kernel``, ``_bundles``, ``_fast_bundle`` and ``_distance_fast``)."""
 
     def collide_pair(self, pos_a, rot_a=None, pos_b=None, rot_b=None, *, quat_order=None):
         """One pose pair at the lowest latency: one compiled call, checks included.
@@ -68,20 +69,7 @@ class OnePairQueries:
         other signatures, takes (3,) and (3, 3) writeable arrays of the compute dtype only (views too).
         """
         bundle = self._fast_bundle  # None until the first query (and always for PrismSets)
-        dt = self.dtype
-        # Each pose's class and dtype by identity, before the kernel: Numba's dispatcher keys arrays by a
-        # fingerprint that leaves out byte order and alignment, so once it has met an unaligned array it
-        # can take a big-endian one of the same kind for native and read its bytes wrongly; and a call it
-        # refuses costs some 0.1 ms in its TypeError (lists, another dtype, two 4x4 transforms).
-        if not (
-            bundle is not None
-            and quat_order is None
-            and pos_a.__class__ is rot_a.__class__ is pos_b.__class__ is rot_b.__class__ is _ndarray
-            and pos_a.dtype is dt
-            and rot_a.dtype is dt
-            and pos_b.dtype is dt
-            and rot_b.dtype is dt
-        ):
+        if bundle is None or quat_order is not None or not plain_poses(self.dtype, pos_a, rot_a, pos_b, rot_b):
             return None
         contact = _empty(3)
         try:
@@ -120,16 +108,52 @@ class OnePairQueries:
         Pa, Ra, ta = self._one_pose(pos_a, rot_a, quat_order, "a")
         Pb, Rb, tb = self._one_pose(pos_b, rot_b, quat_order, "b")
         contact = np.empty(3)
-        if not _pair_closed[self.dtype]:
-            with _pair_closing:  # first calls from several threads: one compiles, the others wait
-                if not _pair_closed[self.dtype]:
-                    _batch.close_pair_kernel(self.dtype)
-                    _pair_closed[self.dtype] = True
+        closed(_batch.collide_pair[self.dtype], pair_signature(self.dtype, CONTACT_TYPE))
         code = self._pair_kernel(self._pair_bundle(ta, tb), Pa, Ra, Pb, Rb, contact)
         self._fast_bundle = self._pair_bundle(self._ortho_tol, self._ortho_tol)
         if code < 0:
             raise ValueError(pair_problem_message(-code, contact[0], ta if -code <= 4 else tb, self._max_magnitude))
         return _new_tuple(PairResult, HIT_CASE[code] + (contact,))
+
+    def _fast_distance(self, pos_a, rot_a, pos_b, rot_b, witness, quat_order, parallel):
+        """:meth:`distance` of one pair whose poses the closed one-pair kernel takes as they are (the rule of
+        :meth:`collide_pair`'s), else None: one compiled call, checks included."""
+        fast = self._distance_fast  # (kernel, bundle, result) once the first one-pair distance closed the kernel
+        if not (
+            fast is not None
+            and quat_order is None
+            and (witness is True or witness is False)
+            and (parallel is None or parallel is True or parallel is False)
+            and plain_poses(self.dtype, pos_a, rot_a, pos_b, rot_b)
+            and pos_a.ndim == pos_b.ndim == 1  # (a batch that the closed kernel refused would cost 0.1 ms)
+            and rot_a.ndim == rot_b.ndim == 2
+        ):
+            return None
+        kernel, bundle, result = fast
+        try:
+            out = kernel(bundle, pos_a, rot_a, pos_b, rot_b, witness)
+        except TypeError:  # another layout, a read-only or unaligned array
+            return None
+        if out[0] == PAIR_SHAPE_PROBLEM:  # the batch's parser says which pose has which shape
+            return None
+        return self._pair_distance_result(out, result, witness)
+
+    def _pair_distance(self, pos_a, rot_a, pos_b, rot_b, witness):
+        """:meth:`distance` of one pair of C-contiguous arrays of the compute dtype (and the first call, which
+        closes the one-pair kernel)."""
+        from .distance import pair_distance_result  # (distance imports the module of Collider)
+
+        closed(distance_pair[self.dtype], pair_signature(self.dtype, WITNESS_TYPE))
+        bundle = self._pair_bundle(self._ortho_tol, self._ortho_tol)
+        out = self._distance_kernel(bundle, pos_a, rot_a, pos_b, rot_b, bool(witness))
+        self._distance_fast = (self._distance_kernel, bundle, pair_distance_result)
+        return self._pair_distance_result(out, pair_distance_result, witness)
+
+    def _pair_distance_result(self, out, result, witness):
+        """``result(out, witness)``, or the ValueError of the first bad pose (arrays of the compute dtype)."""
+        if out[0]:
+            raise ValueError(pair_problem_message(out[0], out[1], self._ortho_tol, self._max_magnitude))
+        return result(out, witness)
 
     def _one_pose(self, pos, rot, quat_order, name):
         """``(P, R, orthonormality tolerance)`` of one body's pose for the one-pair kernel."""
@@ -179,9 +203,34 @@ class OnePairQueries:
         return _plain_transform(pos_a, self.dtype) and _plain_transform(pos_b, self.dtype)
 
 
-#: Whether the one-pair kernel of a dtype has compiled its one signature and been closed to others.
-_pair_closed = {np.dtype(np.float64): False, np.dtype(np.float32): False}
-_pair_closing = threading.Lock()
+#: The one-pair kernels (of each kind and dtype) compiled for their one signature and closed to others.
+_closed = set()
+_closing = threading.Lock()
+
+
+def closed(kernel, signature):
+    """Compile (or load from the cache) ``kernel`` for ``signature`` alone and close it to others, on its
+    first use in the process; first calls from several threads: one compiles, the others wait."""
+    if kernel not in _closed:
+        with _closing:
+            if kernel not in _closed:
+                close_kernel(kernel, signature)
+                _closed.add(kernel)
+
+
+def plain_poses(dtype, pos_a, rot_a, pos_b, rot_b):
+    """Whether the four poses are ndarrays of ``dtype``, class and dtype by identity: the rule before a
+    closed one-pair kernel. Numba's dispatcher keys arrays by a fingerprint that leaves out byte order and
+    alignment, so once it has met an unaligned array it can take a big-endian one of the same kind for
+    native and read its bytes wrongly; and a call it refuses costs some 0.1 ms in its TypeError (lists,
+    another dtype, two 4x4 transforms)."""
+    return (
+        pos_a.__class__ is rot_a.__class__ is pos_b.__class__ is rot_b.__class__ is _ndarray
+        and pos_a.dtype is dtype
+        and rot_a.dtype is dtype
+        and pos_b.dtype is dtype
+        and rot_b.dtype is dtype
+    )
 
 
 def as_written(query, pos_a, rot_a, pos_b, rot_b):

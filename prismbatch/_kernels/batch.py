@@ -548,18 +548,21 @@ def _collide_pair(bundle, Pa, Ra, Pb, Rb, contact):
 collide_pair = per_dtype(_collide_pair, "collide_pair", (np.float64, np.float32), error_model="numpy")
 
 
-def pair_signature(dtype):
-    """The one signature of ``collide_pair[dtype]``: the poses in any layout, so that views (a 4x4
-    transform's ``T[:3, 3]`` and ``T[:3, :3]``) pass as they are; a call that Numba's dispatcher
-    refuses costs some 0.1 ms in its TypeError, a hundred one-pair queries."""
+def pair_signature(dtype, last):
+    """The one signature of a one-pair kernel of ``dtype`` (``collide_pair``, ``distance_pair``): the
+    bundle, the poses in any layout, so that views (a 4x4 transform's ``T[:3, 3]`` and ``T[:3, :3]``) pass
+    as they are (a call that Numba's dispatcher refuses costs some 0.1 ms in its TypeError, a hundred
+    one-pair queries), then the Numba type ``last`` of its last argument."""
     f = numba.from_dtype(np.dtype(dtype))
     vector, matrix = numba.types.Array(f, 1, "A"), numba.types.Array(f, 2, "A")
-    c_int64, c_float64 = numba.types.Array(numba.types.int64, 1, "C"), numba.types.Array(numba.types.float64, 1, "C")
-    return (c_int64, vector, matrix, vector, matrix, c_float64)
+    return (numba.types.Array(numba.types.int64, 1, "C"), vector, matrix, vector, matrix, last)
 
 
-def close_pair_kernel(dtype):
-    """Compile (or load from the cache) ``collide_pair[dtype]`` for :func:`pair_signature` and close it."""
-    kernel = collide_pair[np.dtype(dtype)]
-    first_call(kernel, kernel.compile, pair_signature(dtype))
+#: The Numba type of ``collide_pair``'s last argument, the contact's float64 (3,) array.
+CONTACT_TYPE = numba.types.Array(numba.types.float64, 1, "C")
+
+
+def close_kernel(kernel, signature):
+    """Compile (or load from the cache) ``kernel`` for ``signature`` alone and close it to others."""
+    first_call(kernel, kernel.compile, signature)
     kernel.disable_compile()

@@ -7,6 +7,7 @@ that work done here, in one compiled call (checks as ``collide_pair``'s).
 
 import math
 
+import numba
 import numpy as np
 
 from .batch import pair_problem, pair_scalars, unbundle, unpack
@@ -40,7 +41,9 @@ def _distance_pair(bundle, Pa, Ra, Pb, Rb, witness):
     return 0, 0.0, d, t, signed_status(d, t), code, n, p, q
 
 
-#: The one-pair kernel, one compiled copy per dtype.
+#: The one-pair kernel, one compiled copy per dtype, closed to other signatures as ``collide_pair`` is
+#: (its last argument: ``witness``).
 distance_pair = per_dtype(
     _distance_pair, "distance_pair", (np.float64, np.float32), error_model="numpy", refcounts=True
 )
+WITNESS_TYPE = numba.types.boolean

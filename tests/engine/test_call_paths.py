@@ -281,6 +281,7 @@ def test_byte_order_and_alignment_never_fool_the_one_pair_kernel():
     col = pb.Collider(pb.Prism.regular(4, 1.0), pb.Prism.regular(4, 1.0))
     I, z = np.eye(3), np.zeros(3)
     col.collide_pair(z, I, z, I)
+    col.distance(z, I, z, I)  # (both one-pair kernels closed: the later calls take the fast paths)
     users_own = numba.njit(lambda x: x[0])  # the caller's Numba code meets such arrays first
     for big in (np.zeros(3).astype(">f8"), np.eye(3).astype(">f8")):
         with pytest.raises(numba.core.errors.TypingError):  # (Numba has no type for them)
@@ -301,6 +302,7 @@ def test_byte_order_and_alignment_never_fool_the_one_pair_kernel():
         for k, args in enumerate(forms):
             assert col.collide_pair(*args).hit == want, k
             assert col.collide(*args).hit.tolist() == [want], k
+            assert (col.distance(*args).distance[0] <= col.distance(*args).tol[0]) == want, k
 
 
 def test_first_one_pair_calls_from_several_threads(tmp_path):
@@ -322,16 +324,53 @@ def test_first_one_pair_calls_from_several_threads(tmp_path):
         "        barrier.wait()\n"
         "        try:\n"
         "            hits.append(bool(c.collide_pair(z, I, z, I).hit))\n"
+        "            hits.append(bool(c.distance(z, I, z, I).status[0] <= 0))\n"
         "        except Exception as e:\n"
         "            errors.append(repr(e))\n"
         "    ts = [threading.Thread(target=work, args=(c,)) for c in cols]\n"
         "    [t.start() for t in ts]\n"
         "    [t.join() for t in ts]\n"
-        "    assert not errors and hits == [True] * 4, (errors, hits)\n"
+        "    assert not errors and hits == [True] * 8, (errors, hits)\n"
         "print('ok')\n"
     )
     out = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=600)
     assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr[-2000:]
+
+
+def test_one_pair_distance_fast_path_checks_what_the_batch_checks():
+    """Once the one-pair distance kernel is closed, a plain pair goes straight to it: views answer as
+    contiguous copies to the bit, and flags, bad poses and batches are judged as before."""
+    ps = make_family("free", 40, 3)
+    col = pb.Collider(pb.Prism(ps.xy_a[0]), pb.Prism(ps.xy_b[0]))
+    batch = col.distance(ps.pos_a, ps.rot_a, ps.pos_b, ps.rot_b, witness=True, parallel=False)
+    T = np.zeros((40, 2, 4, 4))
+    T[:, 0, :3, :3], T[:, 0, :3, 3], T[:, 1, :3, :3], T[:, 1, :3, 3] = ps.rot_a, ps.pos_a, ps.rot_b, ps.pos_b
+    for k in range(40):
+        Ta, Tb = T[k, 0], T[k, 1]
+        for args in (
+            (ps.pos_a[k], ps.rot_a[k], ps.pos_b[k], ps.rot_b[k]),
+            (Ta[:3, 3], Ta[:3, :3], Tb[:3, 3], Tb[:3, :3]),
+        ):
+            one = col.distance(*args, witness=True)
+            for f in ("distance", "status", "tol", "solver", "normal", "point_a", "point_b"):
+                got, want = getattr(one, f), getattr(batch, f)[k : k + 1]
+                assert got.dtype == want.dtype and got.shape == want.shape, f
+                np.testing.assert_array_equal(got, want, err_msg=f)
+            with pytest.raises(AttributeError, match="normal was not computed"):
+                col.distance(*args).normal
+    z, I = np.zeros(3), np.eye(3)
+    with pytest.raises(TypeError, match="witness must be"):
+        col.distance(z, I, z, I, witness="yes")
+    with pytest.raises(TypeError, match="parallel must be"):
+        col.distance(z, I, z, I, parallel="no")
+    with pytest.raises(ValueError, match=r"^pos_b contains non-finite"):
+        col.distance(z, I, np.array([0.0, np.nan, 0.0]), I)
+    with pytest.raises(ValueError, match=r"^rot_a is not orthonormal"):
+        col.distance(z, 2 * I, z, I)
+    with pytest.raises(ValueError, match=r"pos_b has shape \(2,\)"):
+        col.distance(z, I, np.zeros(2), I)
+    assert len(col.distance(np.zeros((3, 3)), I, z, I)) == 3  # a batch takes the batch path
+    assert col.distance(z, I, z, I, witness=np.True_, parallel=np.False_).normal.shape == (1, 3)
 
 
 def test_a_batch_given_to_collide_pair_is_named():
