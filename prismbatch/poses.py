@@ -147,8 +147,11 @@ def position_message(where: str, value: float, limit: float) -> str:
     if not math.isfinite(value):
         return f"{where} contains non-finite values (NaN or inf)"
     dtype_note = " for float32" if limit != SUPPORTED_RANGE["float64"][1] else ""
+    shown = f"{value:g}"
+    if shown.lstrip("-") == f"{limit:g}":  # just past the limit: all the digits, or it reads as the limit
+        shown = repr(float(value))
     return (
-        f"{where} has a coordinate {value:g} outside the supported range |x| <= {limit:g}{dtype_note}; "
+        f"{where} has a coordinate {shown} outside the supported range |x| <= {limit:g}{dtype_note}; "
         "rescale the units"
     )
 

@@ -1,5 +1,7 @@
 """Every bad input raises a clear error that names what is wrong and where."""
 
+import re
+
 import numpy as np
 import pytest
 
@@ -229,3 +231,20 @@ def test_unmasked_masked_array_answers_as_its_data():
     as_ma = _COL.collide_pair(_P, _R, np.ma.array([0.0, 0.0, 0.5]), np.ma.array(_R))
     assert (plain.hit, plain.case) == (as_ma.hit, as_ma.case)
     np.testing.assert_array_equal(plain.contact, as_ma.contact)
+
+
+def test_a_coordinate_just_past_the_limit_is_printed_past_it():
+    """The message must not read "1e+100 outside |x| <= 1e+100": a value that rounds onto the limit in
+    the short format is printed with all its digits (batch, one-pair kernel and single pose alike)."""
+    from prismbatch.config import SUPPORTED_RANGE
+
+    lim = SUPPORTED_RANGE["float64"][1]
+    I, z = np.eye(3), np.zeros(3)
+    for v in (np.nextafter(lim, np.inf), -lim * (1 + 1e-9)):
+        want = rf"has a coordinate {re.escape(repr(float(v)))} outside the supported range"
+        with pytest.raises(ValueError, match=r"^pos_a\[1\] " + want):
+            _COL.collide(np.array([z, [v, 0.0, 0.0]]), I, z, I)
+        with pytest.raises(ValueError, match=r"^pos_a " + want):
+            _COL.collide_pair(np.array([v, 0.0, 0.0]), I, z, I)
+    with pytest.raises(ValueError, match=r"^pos_b has a coordinate 3e\+100 outside"):  # the short form otherwise
+        _COL.collide_pair(z, I, np.array([0.0, 3 * lim, 0.0]), I)
