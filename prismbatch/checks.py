@@ -89,12 +89,15 @@ def indexed_name(name: str, i: int | None) -> str:
 
 
 def refuse_masked(x, name: str) -> None:
-    """ValueError if ``x`` is a numpy masked array with masked entries.
+    """ValueError if ``x`` is a numpy masked array with masked entries (or a list or tuple of such rows).
 
     ``np.asarray`` drops the mask and keeps the values under it, so a masked pose or vertex would be
     computed with as if it were data. An unmasked ``MaskedArray`` is read as its data.
     """
-    if isinstance(x, np.ma.MaskedArray) and np.ma.is_masked(x):
+    masked = isinstance(x, np.ma.MaskedArray) and np.ma.is_masked(x)
+    if isinstance(x, (list, tuple)):  # rows given as a list of masked arrays
+        masked = any(isinstance(e, np.ma.MaskedArray) and np.ma.is_masked(e) for e in x)
+    if masked:
         raise ValueError(
             f"{name} has masked entries (numpy.ma), which would be read as the values under the mask; pass "
             f"a plain array of the values you mean (np.ma.compress_rows drops masked rows, .filled(v) fills them)"

@@ -297,8 +297,8 @@ class Collider(OnePairQueries):
 
         if self._a_per or self._b_per:
             raise TypeError("explain needs single Prism shapes, not PrismSets")
-        self.collide_pair(pos_a, rot_a, pos_b, rot_b, quat_order=quat_order)  # the same input checks
         pos_a, rot_a, pos_b, rot_b = as_written("explain", pos_a, rot_a, pos_b, rot_b)
+        self.collide_pair(pos_a, rot_a, pos_b, rot_b, quat_order=quat_order)  # the same input checks
         Pa, Ra, _ = self._one_pose(pos_a, rot_a, quat_order, "a")
         Pb, Rb, _ = self._one_pose(pos_b, rot_b, quat_order, "b")
         trace = np.full(TRACE_SIZE, np.nan)

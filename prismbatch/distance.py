@@ -196,13 +196,13 @@ def pair_distance_result(out, witness):
     dist[0], tol[0], st[0], solver[0] = d, t, status, code
     fields = {"distance": dist, "status": st, "tol": tol, "solver": solver}
     if witness:
-        w = _empty((3, 1, 3))  # normal, point_a and point_b: one allocation
-        w[0, 0], w[1, 0], w[2, 0] = n, p, q
-        fields.update(_normal=w[0], _point_a=w[1], _point_b=w[2])
+        fields.update(_normal=_array((n,)), _point_a=_array((p,)), _point_b=_array((q,)))
+    else:
+        fields.update(_normal=None, _point_a=None, _point_b=None)  # (as the batch's result holds them)
     return new_result(DistanceResult, fields)
 
 
-_empty, _int8 = np.empty, np.int8
+_empty, _array, _int8 = np.empty, np.array, np.int8
 
 
 def signed_distance(a_arrays, b_arrays, n, pos_a, rot_a, pos_b, rot_b, *, rtol, atol, dtype, witness, parallel):

@@ -74,7 +74,7 @@ class OnePairQueries:
         contact = _empty(3)
         try:
             code = self._pair_kernel(bundle, pos_a, rot_a, pos_b, rot_b, contact)
-        except TypeError:  # another dtype or layout, a read-only array, not an array
+        except TypeError:  # (a pose with another number of dimensions: the converted path names it)
             return None
         if code >= 0:
             return _new_tuple(PairResult, HIT_CASE[code] + (contact,))
@@ -108,7 +108,7 @@ class OnePairQueries:
         Pa, Ra, ta = self._one_pose(pos_a, rot_a, quat_order, "a")
         Pb, Rb, tb = self._one_pose(pos_b, rot_b, quat_order, "b")
         contact = np.empty(3)
-        closed(_batch.collide_pair[self.dtype], pair_signature(self.dtype, CONTACT_TYPE))
+        closed(_batch.collide_pair[self.dtype], self.dtype, CONTACT_TYPE)
         code = self._pair_kernel(self._pair_bundle(ta, tb), Pa, Ra, Pb, Rb, contact)
         self._fast_bundle = self._pair_bundle(self._ortho_tol, self._ortho_tol)
         if code < 0:
@@ -132,7 +132,7 @@ class OnePairQueries:
         kernel, bundle, result = fast
         try:
             out = kernel(bundle, pos_a, rot_a, pos_b, rot_b, witness)
-        except TypeError:  # another layout, a read-only or unaligned array
+        except TypeError:  # (a guard: the signature takes whatever the checks above let through)
             return None
         if out[0] == PAIR_SHAPE_PROBLEM:  # the batch's parser says which pose has which shape
             return None
@@ -143,7 +143,7 @@ class OnePairQueries:
         closes the one-pair kernel)."""
         from .distance import pair_distance_result  # (distance imports the module of Collider)
 
-        closed(distance_pair[self.dtype], pair_signature(self.dtype, WITNESS_TYPE))
+        closed(distance_pair[self.dtype], self.dtype, WITNESS_TYPE)
         bundle = self._pair_bundle(self._ortho_tol, self._ortho_tol)
         out = self._distance_kernel(bundle, pos_a, rot_a, pos_b, rot_b, bool(witness))
         self._distance_fast = (self._distance_kernel, bundle, pair_distance_result)
@@ -208,28 +208,29 @@ _closed = set()
 _closing = threading.Lock()
 
 
-def closed(kernel, signature):
-    """Compile (or load from the cache) ``kernel`` for ``signature`` alone and close it to others, on its
-    first use in the process; first calls from several threads: one compiles, the others wait."""
-    if kernel not in _closed:
+def closed(kernel, dtype, last):
+    """Compile (or load from the cache) the one-pair ``kernel`` for its one signature
+    (:func:`~prismbatch._kernels.batch.pair_signature` of ``dtype`` and ``last``) and close it to others,
+    on its first use in the process; first calls from several threads: one compiles, the others wait."""
+    if kernel not in _closed:  # (a set lookup: building the signature costs some 14 µs)
         with _closing:
             if kernel not in _closed:
-                close_kernel(kernel, signature)
+                close_kernel(kernel, pair_signature(dtype, last))
                 _closed.add(kernel)
 
 
 def plain_poses(dtype, pos_a, rot_a, pos_b, rot_b):
-    """Whether the four poses are ndarrays of ``dtype``, class and dtype by identity: the rule before a
-    closed one-pair kernel. Numba's dispatcher keys arrays by a fingerprint that leaves out byte order and
-    alignment, so once it has met an unaligned array it can take a big-endian one of the same kind for
-    native and read its bytes wrongly; and a call it refuses costs some 0.1 ms in its TypeError (lists,
-    another dtype, two 4x4 transforms)."""
+    """Whether the four poses are ndarrays (by class) of ``dtype`` (the same object, or an equal one, which
+    has the same byte order): the rule before a closed one-pair kernel. Numba's dispatcher keys arrays by a
+    fingerprint that leaves out byte order and alignment, so once it has met an unaligned array it can take
+    a big-endian one of the same kind for native and read its bytes wrongly; and a call it refuses costs
+    some 0.1 ms in its TypeError (lists, another dtype, two 4x4 transforms)."""
     return (
         pos_a.__class__ is rot_a.__class__ is pos_b.__class__ is rot_b.__class__ is _ndarray
-        and pos_a.dtype is dtype
-        and rot_a.dtype is dtype
-        and pos_b.dtype is dtype
-        and rot_b.dtype is dtype
+        and (pos_a.dtype is dtype or pos_a.dtype == dtype)  # (==: an equal dtype object, e.g. unpickled;
+        and (rot_a.dtype is dtype or rot_a.dtype == dtype)  # it compares byte order too)
+        and (pos_b.dtype is dtype or pos_b.dtype == dtype)
+        and (rot_b.dtype is dtype or rot_b.dtype == dtype)
     )
 
 
@@ -255,8 +256,7 @@ def kernel_array(x, shape, dtype):
     """``x`` as a C-contiguous, writeable, aligned array of ``dtype`` (copied only if needed).
 
     Read-only and unaligned inputs (``np.broadcast_to``, frozen arrays, fields of packed records) are
-    copied: Numba types them apart, so passing them would compile every kernel again (or, to a closed
-    kernel, raise its TypeError).
+    copied: Numba types them apart, so passing them would compile every batch kernel again.
     """
     if type(x) is np.ndarray and x.shape == shape and x.dtype == dtype:  # the common case, at no cost
         flags = x.flags

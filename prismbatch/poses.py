@@ -151,8 +151,7 @@ def position_message(where: str, value: float, limit: float) -> str:
     if shown.lstrip("-") == f"{limit:g}":  # just past the limit: all the digits, or it reads as the limit
         shown = repr(float(value))
     return (
-        f"{where} has a coordinate {shown} outside the supported range |x| <= {limit:g}{dtype_note}; "
-        "rescale the units"
+        f"{where} has a coordinate {shown} outside the supported range |x| <= {limit:g}{dtype_note}; rescale the units"
     )
 
 

@@ -338,6 +338,7 @@ class Prism:
         check_memory(n * _BYTES_PER_VERTEX, f"Prism.regular({n})")
         radius = real_scalar(radius, "Prism.regular: radius", 5e-324, 1.7976931348623157e308)
         phase = real_scalar(phase, "Prism.regular: phase", -1e6, 1e6)
+        refuse_masked(centre, "Prism.regular: centre")
         c = np.asarray(centre)
         if c.dtype.kind not in "iuf" or c.shape != (2,) or not np.isfinite(c).all():
             raise ValueError(f"Prism.regular: centre must be 2 finite numbers, got {centre!r}")

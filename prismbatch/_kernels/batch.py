@@ -460,7 +460,7 @@ PAIR_SHAPE_PROBLEM = 9
 @jit(inline="always")
 def pair_problem(Pa, Ra, Pb, Rb, ortho_tol_a, ortho_tol_b, max_magnitude):
     """(problem, value) of one pair's poses, checked in the kernel: 0 if valid, else the first bad
-    input (1-4 for a, 5-8 for b, :data:`PAIR_SHAPE_PROBLEM`; see collide._pair_problem)."""
+    input (1-4 for a, 5-8 for b, :data:`PAIR_SHAPE_PROBLEM`; see pair.pair_problem_message)."""
     # Shapes are checked here, not by the caller: a (2,) position would be read out of bounds.
     if Pa.shape[0] != 3 or Pb.shape[0] != 3 or Ra.shape != (3, 3) or Rb.shape != (3, 3):
         return PAIR_SHAPE_PROBLEM, 0.0
@@ -550,11 +550,13 @@ collide_pair = per_dtype(_collide_pair, "collide_pair", (np.float64, np.float32)
 
 def pair_signature(dtype, last):
     """The one signature of a one-pair kernel of ``dtype`` (``collide_pair``, ``distance_pair``): the
-    bundle, the poses in any layout, so that views (a 4x4 transform's ``T[:3, 3]`` and ``T[:3, :3]``) pass
-    as they are (a call that Numba's dispatcher refuses costs some 0.1 ms in its TypeError, a hundred
-    one-pair queries), then the Numba type ``last`` of its last argument."""
+    bundle, the poses in any layout and read-only, so that views (a 4x4 transform's ``T[:3, 3]`` and
+    ``T[:3, :3]``), frozen and ``np.broadcast_to`` arrays pass as they are (writeable ones convert; a call
+    that Numba's dispatcher refuses costs some 0.1 ms in its TypeError, a hundred one-pair queries), then
+    the Numba type ``last`` of its last argument."""
     f = numba.from_dtype(np.dtype(dtype))
-    vector, matrix = numba.types.Array(f, 1, "A"), numba.types.Array(f, 2, "A")
+    vector = numba.types.Array(f, 1, "A", readonly=True)
+    matrix = numba.types.Array(f, 2, "A", readonly=True)
     return (numba.types.Array(numba.types.int64, 1, "C"), vector, matrix, vector, matrix, last)
 
 

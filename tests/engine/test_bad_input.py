@@ -211,6 +211,11 @@ MASKED_CALLS = {
     "Prism vertices": (lambda m: pb.Prism(m(np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]), 3)), "prism"),
     "PrismSet polygon": (lambda m: pb.PrismSet([_A.xy, m(_B.xy, 0)]), "polygon 1"),
     "rtol": (lambda m: pb.Collider(_A, _B, rtol=np.ma.masked), "rtol"),
+    "rows as a list": (lambda m: pb.distance(_A, _B, np.zeros((2, 3)), _R, [m(_FAR, 0), _FAR], _R), "pos_b"),
+    "Prism.regular centre": (
+        lambda m: pb.Prism.regular(6, 1.0, centre=m(np.array([0.0, 5.0]), 1)),
+        "Prism.regular: centre",
+    ),
 }
 
 

@@ -337,6 +337,42 @@ def test_first_one_pair_calls_from_several_threads(tmp_path):
     assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr[-2000:]
 
 
+def test_read_only_and_unpickled_poses_go_straight_to_the_one_pair_kernels(monkeypatch):
+    """Frozen, np.broadcast_to and unpickled arrays (an equal dtype object, not the same one) take the
+    fast paths (the kernels' signatures take read-only poses): a refused call cost some 0.1 ms."""
+    import pickle
+
+    ps = make_family("facing", 12, 2)
+    col = pb.Collider(pb.Prism(ps.xy_a[0]), pb.Prism(ps.xy_b[0]))
+    col.collide_pair(ps.pos_a[0], ps.rot_a[0], ps.pos_b[0], ps.rot_b[0])
+    col.distance(ps.pos_a[0], ps.rot_a[0], ps.pos_b[0], ps.rot_b[0])
+    batch = col.collide(ps.pos_a, ps.rot_a, ps.pos_b, ps.rot_b, contact=True)
+    dist = col.distance(ps.pos_a, ps.rot_a, ps.pos_b, ps.rot_b, witness=True)
+    slow = []
+    monkeypatch.setattr(col, "_converted_pair", lambda *a: slow.append("collide_pair"))
+    monkeypatch.setattr(col, "_pair_distance", lambda *a: slow.append("distance"))
+
+    def frozen(x):
+        y = x.copy()
+        y.flags.writeable = False
+        return y
+
+    for k in range(12):
+        pose = (ps.pos_a[k], ps.rot_a[k], ps.pos_b[k], ps.rot_b[k])
+        for form in (
+            tuple(frozen(x) for x in pose),
+            tuple(np.broadcast_to(x, x.shape) for x in pose),
+            tuple(pickle.loads(pickle.dumps(x)) for x in pose),
+        ):
+            one = col.collide_pair(*form)
+            assert (one.hit, one.case) == (batch.hit[k], batch.case[k])
+            np.testing.assert_array_equal(one.contact, batch.contact[k])
+            d = col.distance(*form, witness=True)
+            np.testing.assert_array_equal(d.distance, dist.distance[k : k + 1])
+            np.testing.assert_array_equal(d.point_b, dist.point_b[k : k + 1])
+    assert not slow
+
+
 def test_one_pair_distance_fast_path_checks_what_the_batch_checks():
     """Once the one-pair distance kernel is closed, a plain pair goes straight to it: views answer as
     contiguous copies to the bit, and flags, bad poses and batches are judged as before."""
@@ -356,8 +392,11 @@ def test_one_pair_distance_fast_path_checks_what_the_batch_checks():
                 got, want = getattr(one, f), getattr(batch, f)[k : k + 1]
                 assert got.dtype == want.dtype and got.shape == want.shape, f
                 np.testing.assert_array_equal(got, want, err_msg=f)
+            plain = col.distance(*args)
             with pytest.raises(AttributeError, match="normal was not computed"):
-                col.distance(*args).normal
+                plain.normal
+            assert vars(plain).keys() == vars(batch[k]).keys()  # (the same fields, None ones too)
+            assert all(x.flags.owndata for x in (one.normal, one.point_a, one.point_b))
     z, I = np.zeros(3), np.eye(3)
     with pytest.raises(TypeError, match="witness must be"):
         col.distance(z, I, z, I, witness="yes")
