@@ -118,7 +118,7 @@ class Collider(OnePairQueries):
         self._ortho_tol = ortho_tolerance(dt, dt)
         self._pair_kernel = _batch.collide_pair[dt]
         self._distance_kernel = distance_pair[dt]
-        self._distance_fast = None  # (kernel, bundle, result builder), set by the first one-pair distance
+        self._distance_fast = None  # (bundle, result builder), set by the first one-pair distance
         self._bundles = {}  # (ortho_tol_a, ortho_tol_b) -> pair bundle of the one-pair kernels (single prisms)
         # Set by the first one-pair query (which compiles or closes the kernel): the bundle of poses of the
         # compute dtype, which the fast path takes as they are.
