@@ -397,21 +397,24 @@ class PrismSet:
             raise ValueError("PrismSet needs at least one polygon")
         total = sum(_vertex_count(p) for p in polygons)
         check_memory(total * _BYTES_PER_VERTEX, f"PrismSet of {len(polygons):,} polygons, {total:,} vertices")
-        self.prisms = _build_prisms(polygons)
-        counts = np.array([p.n_vertices for p in self.prisms], dtype=np.int64)
+        groups, self._prisms = _build_groups(polygons)
+        m = len(polygons)
+        counts = np.empty(m, dtype=np.int64)
+        self._row = np.empty(m, dtype=np.int64)  # polygon k is row _row[k] of its vertex count's group
+        self.centre, self.radius = np.empty((m, 2)), np.empty(m)
+        for n, (ks, ccw, centres, radii) in groups.items():
+            counts[ks], self._row[ks] = n, np.arange(len(ks))
+            self.centre[ks], self.radius[ks] = centres, radii
+        self._groups = groups
         self.offsets = np.concatenate(([0], np.cumsum(counts))).astype(np.int64)
-        self.centre = np.array([p.centre for p in self.prisms]).reshape(-1, 2)
-        self.radius = np.array([p.radius for p in self.prisms])
         # The kernel tables of the polygons of each vertex count at once, then put in set order.
         n_total = int(self.offsets[-1])
         v = np.empty((n_total, 2))
         self.edge_angle, self.vertex_angle, self.inv_edge_len = np.empty(n_total), np.empty(n_total), np.empty(n_total)
         self.edge_table = np.empty(n_total, dtype=np.int64)
-        for n in np.unique(counts):
-            ks = np.flatnonzero(counts == n)
-            xy = np.stack([self.prisms[k].xy for k in ks])
+        for n, (ks, ccw, centres, _) in groups.items():
             rows = (self.offsets[ks][:, None] + np.arange(n)).ravel()
-            parts = _kernel_data(xy, self.centre[ks])
+            parts = _kernel_data(ccw, centres)
             v[rows] = parts[0].reshape(-1, 2)
             for dest, part in zip((self.edge_angle, self.edge_table, self.vertex_angle, self.inv_edge_len), parts[1:]):
                 dest[rows] = part.ravel()
@@ -432,10 +435,25 @@ class PrismSet:
         self._kernel_arrays = {}
 
     def __len__(self):
-        return len(self.prisms)
+        return len(self._row)
 
     def __getitem__(self, k):
-        return self.prisms[k]
+        """The :class:`Prism` of polygon ``k`` (a list of them for a slice), made on first access."""
+        if isinstance(k, slice):
+            return [self[j] for j in range(len(self))[k]]
+        j = range(len(self))[k]  # (the int and IndexError rules of a sequence)
+        prism = self._prisms.get(j)
+        if prism is None:
+            ks, ccw, centres, radii = self._groups[int(self.offsets[j + 1] - self.offsets[j])]
+            row = self._row[j]
+            prism = self._prisms[j] = Prism._checked(ccw[row], centres[row], float(radii[row]))
+        return prism
+
+    @property
+    def prisms(self):
+        """Every polygon's :class:`Prism`, in set order (made on first access: a set of many polygons is
+        built without them)."""
+        return self[:]
 
     def __repr__(self):
         n = np.diff(self.offsets)
@@ -469,16 +487,19 @@ class PrismSet:
         return out
 
 
-def _build_prisms(polygons):
-    """:class:`Prism` objects of ``polygons`` (arrays or Prisms), checked in stacks of equal vertex count.
+def _build_groups(polygons):
+    """``(groups, given)``: ``polygons`` (arrays or Prisms) checked in stacks of equal vertex count.
 
-    The outcome is that of ``Prism(p, name=f"polygon {k}")`` for each in turn (the same checks,
-    :func:`_check_polygons`, and the first failing polygon's error), at a fraction of the cost.
+    ``groups`` maps a vertex count n to ``(ks, ccw, centres, radii)``: the polygons' indices, their
+    vertices counter-clockwise (m, n, 2, read-only), area centroids (m, 2) and bounding radii (m,);
+    ``given`` maps the index of each Prism in ``polygons`` to it. The outcome is that of
+    ``Prism(p, name=f"polygon {k}")`` for each in turn (the same checks, :func:`_check_polygons`, and
+    the first failing polygon's error), at a fraction of the cost: no Prism object is made.
     """
-    prisms = [p if isinstance(p, Prism) else None for p in polygons]
+    given = {k: p for k, p in enumerate(polygons) if isinstance(p, Prism)}
     by_count, stacks, errors = {}, [], {}  # errors: k -> the exception, or the failed checks, of polygon k
     for k, p in enumerate(polygons):
-        if prisms[k] is None:
+        if k not in given:
             try:
                 plain = isinstance(p, (np.ndarray, list, tuple)) and not isinstance(p, np.ma.MaskedArray)
                 arr = np.asarray(p) if plain else None  # (others, masked arrays too, are read one by one)
@@ -504,6 +525,7 @@ def _build_prisms(polygons):
             stacks.append(_read_one(stack[j], ks[j], errors))
         keep = np.flatnonzero(~odd)
         stacks.append(([ks[j] for j in keep], stack[keep]))
+    parts = {}  # n -> [(ks, ccw, centres, radii)] of each stack
     for ks, stack in stacks:
         if not ks:
             continue
@@ -512,8 +534,7 @@ def _build_prisms(polygons):
         if len(ok):
             ccw = checks.ccw[ok]
             centres = _centroids(ccw)
-            for j, xy, c, r in zip(ok, ccw, centres, _radii(ccw, centres)):
-                prisms[ks[j]] = Prism._checked(xy, c, float(r))
+            parts.setdefault(ccw.shape[1], []).append((np.asarray(ks)[ok], ccw, centres, _radii(ccw, centres)))
         for j in np.flatnonzero(~checks.ok):
             errors[ks[j]] = (checks, j, stack[j])
     if errors:
@@ -521,7 +542,14 @@ def _build_prisms(polygons):
         if isinstance(errors[k], Exception):
             raise errors[k]
         _raise_first_failure(*errors[k], f"polygon {k}")
-    return prisms
+    for k, p in given.items():
+        parts.setdefault(p.n_vertices, []).append((np.array([k]), p.xy[None], p.centre[None], np.array([p.radius])))
+    groups = {}
+    for n, group in parts.items():
+        ks, ccw, centres, radii = (np.concatenate(f) for f in zip(*group))
+        ccw.flags.writeable = False
+        groups[n] = (ks, ccw, centres, radii)
+    return groups, given
 
 
 def _read_one(p, k, errors):

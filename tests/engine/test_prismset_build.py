@@ -59,6 +59,29 @@ def test_bulk_build_equals_one_prism_at_a_time_to_the_bit(seed):
         assert not p.xy.flags.writeable
 
 
+def test_prisms_are_made_on_access_as_a_sequence_gives_them():
+    polygons = _polygons(np.random.default_rng(2), 60)
+    s = pb.PrismSet(polygons)
+    assert len(s) == 60
+    for k in (0, 17, 59, -1, -60):
+        p, ref = s[k], polygons[k]
+        assert s[k] is p  # made once
+        if isinstance(ref, pb.Prism):
+            assert p is ref  # a Prism given is the Prism kept
+        else:
+            np.testing.assert_array_equal(p.xy, pb.Prism(ref).xy)
+            assert p.radius == pb.Prism(ref).radius
+    assert [p.n_vertices for p in s[10:20:3]] == [s[k].n_vertices for k in range(10, 20, 3)]
+    assert len(s.prisms) == 60 and s.prisms[5] is s[5]
+    for k in (60, -61):
+        with pytest.raises(IndexError):
+            s[k]
+    with pytest.raises(TypeError):
+        s[1.0]
+    with pytest.raises(ValueError):
+        s[3].xy[0, 0] = 1.0  # read-only, as a Prism's vertices are
+
+
 BAD = [
     ([[0, 0], [1, 0], [1, 0], [0, 1]], ValueError, "vertex 2 repeats vertex 1"),
     ([[0, 0], [1, 0], [2, 0]], ValueError, "zero area"),
