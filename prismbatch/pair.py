@@ -120,6 +120,8 @@ class OnePairQueries:
         """:meth:`distance` of one pair whose poses the closed one-pair kernel takes as they are (the rule of
         :meth:`collide_pair`'s), else None: one compiled call, checks included."""
         fast = self._distance_fast  # (bundle, result) once the first one-pair distance closed the kernel
+        if witness.__class__ is _np_bool:  # (np.True_ from an array of flags: the same query)
+            witness = bool(witness)
         if not (
             fast is not None
             and quat_order is None
@@ -272,7 +274,8 @@ def pair_problem_message(code, val, ortho_tol, max_magnitude):
 #: PairResults are built with tuple.__new__: the class's own __new__ is one more Python call (some
 #: 50 ns of a one-pair query).
 _new_tuple = tuple.__new__
-_empty, _ndarray = np.empty, np.ndarray  # (module globals: one attribute lookup less in a one-pair query)
+# (module globals: one attribute lookup less in a one-pair query)
+_empty, _ndarray, _np_bool = np.empty, np.ndarray, np.bool_
 #: ``(hit, case)`` of each return ``2 * case + hit`` of the one-pair kernel: the one place that decodes it
 #: (a lookup costs what the arithmetic does, about 47 ns).
 HIT_CASE = tuple((bool(code & 1), code >> 1) for code in range(2 * (max(CASES) + 1)))

@@ -338,8 +338,9 @@ def test_first_one_pair_calls_from_several_threads(tmp_path):
 
 
 def test_read_only_and_unpickled_poses_go_straight_to_the_one_pair_kernels(monkeypatch):
-    """Frozen, np.broadcast_to and unpickled arrays (an equal dtype object, not the same one) take the
-    fast paths (the kernels' signatures take read-only poses): a refused call cost some 0.1 ms."""
+    """Frozen, np.broadcast_to and unpickled arrays (an equal dtype object, not the same one), and
+    ``witness=np.True_``, take the fast paths (the kernels' signatures take read-only poses): a refused
+    call cost some 0.1 ms."""
     import pickle
 
     ps = make_family("facing", 12, 2)
@@ -370,6 +371,8 @@ def test_read_only_and_unpickled_poses_go_straight_to_the_one_pair_kernels(monke
             d = col.distance(*form, witness=True)
             np.testing.assert_array_equal(d.distance, dist.distance[k : k + 1])
             np.testing.assert_array_equal(d.point_b, dist.point_b[k : k + 1])
+        d = col.distance(*pose, witness=np.True_)  # a flag read from a NumPy array: the same fast query
+        np.testing.assert_array_equal(d.point_a, dist.point_a[k : k + 1])
     assert not slow
 
 
