@@ -105,6 +105,20 @@ def test_contact_flag_serial_parallel_consistency(random_pairs):
     assert np.all((full.case >= 1) & (full.case <= 11))
 
 
+@pytest.mark.parametrize("n", [1, 2, 3, 7, 8, 9, 61])
+def test_parallel_blocks_cover_every_pair_once(n):
+    # The parallel kernel cuts a batch into blocks (up to 4 a thread, at most n): each pair, once.
+    from prismbatch.sampling import free_poses
+
+    col = pb.Collider(pb.Prism.regular(7, 1.0), pb.Prism.regular(5, 0.8))
+    P = free_poses(n, np.random.default_rng(n), radius=0.8)
+    par = col.collide(*P, contact=True, parallel=True)
+    for i in range(n):
+        one = col.collide_pair(*(x[i] for x in P))
+        assert (one.hit, one.case) == (par.hit[i], par.case[i]), i
+        np.testing.assert_array_equal(one.contact, par.contact[i])
+
+
 @pytest.mark.slow
 def test_near_touching_contacts():
     """Contacts of pairs moved to the edge of touching (last hit of a
