@@ -151,7 +151,7 @@ def stage_rows(n_vertices, n_pairs, repeats, rng):
                 STAGES[k - 1]: (lambda k=k, p=poses, o=out: _staged(k, A, B, *p, rtol, eps, o)) for k in (2, 3, 4, 5, 6)
             },
             "kernel": lambda p=poses: collide_serial(
-                ka.floats, ka.ints, kb.floats, kb.ints, *p, rtol, 0.0, eps, False, 1, hit, cs, cont
+                0, n, ka.floats, ka.ints, kb.floats, kb.ints, *p, rtol, 0.0, eps, False, hit, cs, cont
             ),  # fmt: skip
             "Collider.collide": lambda p=poses: col.collide(*p, parallel=False),
         }

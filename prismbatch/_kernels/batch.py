@@ -1,10 +1,12 @@
 """Batch drivers: one plain loop over pairs, compiled serial and parallel.
 
-The loop is written once (:func:`_collide_loop`) and compiled twice, as
-umap does: with ``parallel=False`` ``prange`` is an ordinary range; both twins
-call one compiled loop over a block of pairs (:func:`_collide_block`). Every
-iteration reads its pair's shapes and poses (a batch of one broadcasts by
-index, no copies) and writes only its own output slots.
+The collide loop is written once (:func:`collide_serial`, over a range of
+pairs) and :func:`collide_parallel` runs it on blocks of the batch over the
+threads; the other loops (distance, margin, time of impact, detach, sampling)
+are written once and compiled twice, as umap does (:func:`~.jit.twins`: with
+``parallel=False`` ``prange`` is an ordinary range). Every iteration reads its
+pair's shapes and poses (a batch of one broadcasts by index, no copies) and
+writes only its own output slots.
 """
 
 import math
@@ -16,7 +18,7 @@ import numpy as np
 from numba import prange
 
 from .checks import rotation_problem
-from .jit import first_call, jit, per_dtype, twins
+from .jit import first_call, jit, per_dtype
 from .planar import extreme_vertex
 from .projection import CASE_ABOVE, T_P, T_R, T_TOL, pair_test, surely_above, surely_above_by_radius
 
@@ -267,8 +269,8 @@ def pair_of_sets(a, b, ka, kb, Pa, Ra, inv, Pb, Rb, rtol, atol, eps, trace):
     )
 
 
-@jit(error_model="numpy")
-def _collide_block(
+@jit(parallel=False, error_model="numpy")
+def collide_serial(
     lo,
     hi,
     a_floats,
@@ -287,7 +289,11 @@ def _collide_block(
     case_out,
     contact_out,
 ):
-    """Pairs ``lo .. hi - 1`` of a batch (see :func:`_collide_loop`)."""
+    """Pairs ``lo .. hi - 1`` of a batch: the serial kernel, and each block of :func:`collide_parallel`.
+
+    Every iteration reads its pair's shapes and poses (a batch of one broadcasts by index, no copies)
+    and writes only its own output slots.
+    """
     a = unpack(a_floats, a_ints)
     b = unpack(b_floats, b_ints)
     npa = pos_a.shape[0]
@@ -321,7 +327,9 @@ def _collide_block(
             contact_out[i, 2] = cz
 
 
-def _collide_loop(
+@jit(parallel=True, error_model="numpy")
+def collide_parallel(
+    blocks,
     a_floats,
     a_ints,
     b_floats,
@@ -334,19 +342,18 @@ def _collide_loop(
     atol,
     eps,
     want_contact,
-    blocks,
     hit_out,
     case_out,
     contact_out,
 ):
-    """Every pair of a batch, in ``blocks`` contiguous blocks (:func:`work_blocks`): the twins share one
-    compiled pair loop, :func:`_collide_block`. Compiled into the parallel twin's outlined body, that loop
-    ran 7 % slower per pair than in the serial twin (two threads 1.78x one); called, it runs alike (1.91x),
-    and the parallel twin's first compile reuses the serial one's."""
+    """A batch in ``blocks`` contiguous blocks (:func:`work_blocks`) over the threads, each block by
+    :func:`collide_serial`. With the pair loop compiled into this loop's outlined body instead, a pair
+    took 7 % longer than in the serial kernel (two threads 1.78x one; 1.91x called), and this kernel's
+    first compile now reuses the serial one's (from Numba's cache too)."""
     n = hit_out.shape[0]
     for bp in prange(blocks):
         blk = np.int64(bp)  # prange's index is unsigned; mixing it with int64 would give floats
-        _collide_block(
+        collide_serial(
             blk * n // blocks,
             (blk + 1) * n // blocks,
             a_floats,
@@ -365,9 +372,6 @@ def _collide_loop(
             case_out,
             contact_out,
         )
-
-
-collide_serial, collide_parallel = twins(_collide_loop, "collide", error_model="numpy")
 
 
 #: Batches smaller than this run on the serial kernel when ``parallel`` is
@@ -482,6 +486,7 @@ def run(a_arrays, b_arrays, pos_a, rot_a, pos_b, rot_b, n, rtol, atol, want_cont
     first_call(
         (kern, pos_a.dtype),
         kern,
+        *((work_blocks(n, True),) if parallel else (0, n)),  # the blocks, or the whole batch as one
         a_arrays.floats,
         a_arrays.ints,
         b_arrays.floats,
@@ -494,7 +499,6 @@ def run(a_arrays, b_arrays, pos_a, rot_a, pos_b, rot_b, n, rtol, atol, want_cont
         atol,
         float(np.finfo(pos_a.dtype).eps),
         want_contact,
-        work_blocks(n, parallel),
         hit,
         case,
         contact,
