@@ -328,50 +328,16 @@ def collide_serial(
 
 
 @jit(parallel=True, error_model="numpy")
-def collide_parallel(
-    blocks,
-    a_floats,
-    a_ints,
-    b_floats,
-    b_ints,
-    pos_a,
-    rot_a,
-    pos_b,
-    rot_b,
-    rtol,
-    atol,
-    eps,
-    want_contact,
-    hit_out,
-    case_out,
-    contact_out,
-):
+def collide_parallel(blocks, *batch):
     """A batch in ``blocks`` contiguous blocks (:func:`work_blocks`) over the threads, each block by
-    :func:`collide_serial`. With the pair loop compiled into this loop's outlined body instead, a pair
-    took 7 % longer than in the serial kernel (two threads 1.78x one; 1.91x called), and this kernel's
-    first compile now reuses the serial one's (from Numba's cache too)."""
-    n = hit_out.shape[0]
+    :func:`collide_serial` (``batch``: its arguments after ``lo, hi``). With the pair loop compiled into
+    this loop's outlined body instead, a pair took 7 % longer than in the serial kernel (two threads
+    1.78x one; 1.91x called), and this kernel's first compile now reuses the serial one's (from Numba's
+    cache too)."""
+    n = batch[-3].shape[0]  # (hit_out)
     for bp in prange(blocks):
         blk = np.int64(bp)  # prange's index is unsigned; mixing it with int64 would give floats
-        collide_serial(
-            blk * n // blocks,
-            (blk + 1) * n // blocks,
-            a_floats,
-            a_ints,
-            b_floats,
-            b_ints,
-            pos_a,
-            rot_a,
-            pos_b,
-            rot_b,
-            rtol,
-            atol,
-            eps,
-            want_contact,
-            hit_out,
-            case_out,
-            contact_out,
-        )
+        collide_serial(blk * n // blocks, (blk + 1) * n // blocks, *batch)
 
 
 #: Batches smaller than this run on the serial kernel when ``parallel`` is
