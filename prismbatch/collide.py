@@ -316,6 +316,7 @@ class Collider(OnePairQueries):
             self.rtol,
             self.atol,
             self._eps,
+            True,
             trace,
         )
         out = {name: float(v) for name, v in zip(TRACE_FIELDS, trace)}

@@ -134,12 +134,14 @@ def pair_world(
     rtol,
     atol,
     eps,
+    witness,
     trace,
 ):
     """One pair from world poses: (hit, case, contact x, y, z in world).
 
     Shapes ka of set a and kb of set b; Pa (3,), Ra (3, 3) etc.; ``inv``: :func:`frame_inverse`
-    of Ra, or None to form it here. ``trace``:
+    of Ra, or None to form it here. ``witness``: False when the caller does not want the contact
+    (it may then be NaN). ``trace``:
     None, or TRACE_SIZE floats to fill (see _projection.TRACE_FIELDS).
     """
     acx, acy, bcx, bcy = acen[ka, 0], acen[ka, 1], bcen[kb, 0], bcen[kb, 1]
@@ -218,6 +220,7 @@ def pair_world(
         r22,
         tol,
         imax,
+        witness,
         trace,
     )
     if not hit:
@@ -232,7 +235,7 @@ def pair_world(
 
 
 @jit(inline="always")
-def pair_of_sets(a, b, ka, kb, Pa, Ra, inv, Pb, Rb, rtol, atol, eps, trace):
+def pair_of_sets(a, b, ka, kb, Pa, Ra, inv, Pb, Rb, rtol, atol, eps, witness, trace):
     """:func:`pair_world` for prism ka of set a and prism kb of set b, each set the tuple of :func:`unpack`
     (``inv``: :func:`frame_inverse` of Ra, or None)."""
     # (unpacked by name: Numba's inliner takes no star arguments)
@@ -265,6 +268,7 @@ def pair_of_sets(a, b, ka, kb, Pa, Ra, inv, Pb, Rb, rtol, atol, eps, trace):
         rtol,
         atol,
         eps,
+        witness,
         trace,
     )
 
@@ -317,6 +321,7 @@ def collide_serial(
             rtol,
             atol,
             eps,
+            want_contact,
             None,
         )
         hit_out[i] = hit
@@ -555,7 +560,7 @@ def _collide_pair(bundle, Pa, Ra, Pb, Rb, contact):
         contact[0] = val
         return -problem
     a, b = unpack(a_floats, a_ints), unpack(b_floats, b_ints)
-    hit, case, cx, cy, cz = pair_of_sets(a, b, 0, 0, Pa, Ra, None, Pb, Rb, rtol, atol, eps, None)
+    hit, case, cx, cy, cz = pair_of_sets(a, b, 0, 0, Pa, Ra, None, Pb, Rb, rtol, atol, eps, True, None)
     contact[0], contact[1], contact[2] = cx, cy, cz
     return 2 * case + hit
 

@@ -317,8 +317,9 @@ def support_spec(vx, vy, eang, etab, s, n, sp, dx, dy):
 def _seg_closest(p, q):
     """Closest point to the origin on segment [p, q] of simplex entries.
 
-    Entries are tuples (wx, wy, ax, ay, u, v, t). Returns (vx, vy, lam) where
-    lam is the weight of q (0 -> p alone, 1 -> q alone).
+    Entries are tuples (wx, wy, dx, dy): the point w = a - b of the Minkowski difference and the
+    direction d its support on B was taken in. Returns (vx, vy, lam) where lam is the weight of q
+    (0 -> p alone, 1 -> q alone).
     """
     ex = q[0] - p[0]
     ey = q[1] - p[1]
@@ -340,9 +341,21 @@ def _seg_closest(p, q):
     return d * nx, d * ny, lam
 
 
+@jit
+def _entry_witness(avx, avy, aeang, aetab, sa, na, bvx, bvy, beang, betab, sb, nb, sp, e):
+    """(ax, ay, u, v, t) of simplex entry ``e``: a's support point and the pre-image of b's, found
+    again from the entry's direction (both supports are pure functions of it, so this is the point
+    the entry was made from, to the bit). GJK carries only w and d, and makes the witness from them
+    on a hit when it is asked for: carrying the five witness numbers through every iteration cost
+    the status-only query a quarter of its GJK time."""
+    ka = extreme_vertex(avx, avy, aeang, aetab, sa, na, -e[2], -e[3])
+    _, _, u, v, t = support_spec(bvx, bvy, beang, betab, sb, nb, sp, e[2], e[3])
+    return avx[sa + ka], avy[sa + ka], u, v, t
+
+
 @jit(inline="always")
 def _mix(p, q, lam):
-    """(1 - lam) p + lam q, entry-wise."""
+    """(1 - lam) p + lam q, entry-wise, of two :func:`_entry_witness` tuples."""
     m = 1.0 - lam
     return (
         m * p[0] + lam * q[0],
@@ -350,45 +363,44 @@ def _mix(p, q, lam):
         m * p[2] + lam * q[2],
         m * p[3] + lam * q[3],
         m * p[4] + lam * q[4],
-        m * p[5] + lam * q[5],
-        m * p[6] + lam * q[6],
     )
 
 
 @jit
-def gjk(avx, avy, aeang, aetab, sa, na, bvx, bvy, beang, betab, sb, nb, sp, tol):
+def gjk(avx, avy, aeang, aetab, sa, na, bvx, bvy, beang, betab, sb, nb, sp, tol, witness):
     """Is dist(polygon A, spec shape B) <= tol?  2-D GJK on O(log n) supports.
 
-    Returns (hit, iterations, ax, ay, u, v, t): on a hit, (ax, ay) is a point
-    of A and (u, v, t) the pre-image of a point of B within tol of it (their
-    weighted simplex combination). Replaces the walk of eqs. (15)-(18): it
-    needs no starting edge pair and ends in a bounded number of steps.
+    Returns (hit, iterations, ax, ay, u, v, t): on a hit with ``witness`` true, (ax, ay) is a point
+    of A and (u, v, t) the pre-image of a point of B within tol of it (their weighted simplex
+    combination); zeros otherwise. Replaces the walk of eqs. (15)-(18): it needs no starting edge
+    pair and ends in a bounded number of steps.
     """
     tol2 = tol * tol
     dx = sp[SP_PX]
     dy = sp[SP_PY]
     if dx == 0.0 and dy == 0.0:
         dx = 1.0
-    # Simplex entries: (wx, wy, ax, ay, u, v, t) with w = a - b.
+    # Simplex entries: (wx, wy, bdx, bdy), w = a - b from the supports of A in -bd and of B in bd.
+    # The witness is p0 while the simplex is one point (k = 1), (1 - lam) p0 + lam p1 on a segment.
     ka = extreme_vertex(avx, avy, aeang, aetab, sa, na, dx, dy)
-    bx, by, bu, bv, bt = support_spec(bvx, bvy, beang, betab, sb, nb, sp, -dx, -dy)
-    p0 = (avx[sa + ka] - bx, avy[sa + ka] - by, avx[sa + ka], avy[sa + ka], bu, bv, bt)
+    bx, by, _, _, _ = support_spec(bvx, bvy, beang, betab, sb, nb, sp, -dx, -dy)
+    p0 = (avx[sa + ka] - bx, avy[sa + ka] - by, -dx, -dy)
     p1 = p0
     k = 1
+    lam = 0.0
     vx_ = p0[0]
     vy_ = p0[1]
-    wit = p0
     last_vv = math.inf
     lower = -math.inf  # best lower bound of the distance so far
     for it in range(GJK_MAX_ITER):
         vv = vx_ * vx_ + vy_ * vy_
         if vv <= tol2:
-            return True, it, wit[2], wit[3], wit[4], wit[5], wit[6]
+            return _hit(avx, avy, aeang, aetab, sa, na, bvx, bvy, beang, betab, sb, nb, sp, witness, it, p0, p1, k, lam)
         ka = extreme_vertex(avx, avy, aeang, aetab, sa, na, -vx_, -vy_)
         bx, by, bu, bv, bt = support_spec(bvx, bvy, beang, betab, sb, nb, sp, vx_, vy_)
         ax = avx[sa + ka]
         ay = avy[sa + ka]
-        pn = (ax - bx, ay - by, ax, ay, bu, bv, bt)
+        pn = (ax - bx, ay - by, vx_, vy_)
         vw = vx_ * pn[0] + vy_ * pn[1]
         lower = max(lower, vw / math.sqrt(vv))
         if lower > tol:
@@ -408,7 +420,6 @@ def gjk(avx, avy, aeang, aetab, sa, na, bvx, bvy, beang, betab, sb, nb, sp, tol)
             elif lam > 0.0:
                 p1 = pn
                 k = 2
-            wit = _mix(p0, pn, lam) if k == 2 else p0
         else:
             # Triangle p0, p1, pn: origin inside -> overlap.
             s_ = (p1[0] - p0[0]) * (pn[1] - p0[1]) - (p1[1] - p0[1]) * (pn[0] - p0[0])
@@ -419,17 +430,21 @@ def gjk(avx, avy, aeang, aetab, sa, na, bvx, bvy, beang, betab, sb, nb, sp, tol)
                 (s_ > 0.0 and c0 >= 0.0 and c1 >= 0.0 and c2 >= 0.0)
                 or (s_ < 0.0 and c0 <= 0.0 and c1 <= 0.0 and c2 <= 0.0)
             ):
+                if not witness:
+                    return True, it, 0.0, 0.0, 0.0, 0.0, 0.0
                 l0 = c0 / s_
                 l1 = c1 / s_
                 l2 = 1.0 - l0 - l1
+                w0 = _entry_witness(avx, avy, aeang, aetab, sa, na, bvx, bvy, beang, betab, sb, nb, sp, p0)
+                w1 = _entry_witness(avx, avy, aeang, aetab, sa, na, bvx, bvy, beang, betab, sb, nb, sp, p1)
                 return (
                     True,
                     it,
-                    l0 * p0[2] + l1 * p1[2] + l2 * pn[2],
-                    l0 * p0[3] + l1 * p1[3] + l2 * pn[3],
-                    l0 * p0[4] + l1 * p1[4] + l2 * pn[4],
-                    l0 * p0[5] + l1 * p1[5] + l2 * pn[5],
-                    l0 * p0[6] + l1 * p1[6] + l2 * pn[6],
+                    l0 * w0[0] + l1 * w1[0] + l2 * ax,
+                    l0 * w0[1] + l1 * w1[1] + l2 * ay,
+                    l0 * w0[2] + l1 * w1[2] + l2 * bu,
+                    l0 * w0[3] + l1 * w1[3] + l2 * bv,
+                    l0 * w0[4] + l1 * w1[4] + l2 * bt,
                 )
             # Otherwise the closest point lies on an edge through the new point.
             ax0, ay0, la = _seg_closest(p0, pn)
@@ -441,24 +456,34 @@ def gjk(avx, avy, aeang, aetab, sa, na, bvx, bvy, beang, betab, sb, nb, sp, tol)
             if lam >= 1.0:
                 p0 = pn
                 k = 1
-                wit = pn
             elif lam <= 0.0:
                 p0 = q
                 k = 1
-                wit = q
             else:
                 p0 = q
                 p1 = pn
-                wit = _mix(q, pn, lam)
     # Iteration cap (cycling at rounding level): touching counts, so a
     # distance not shown to exceed tol is a hit.
     if lower <= tol:
-        return True, GJK_MAX_ITER, wit[2], wit[3], wit[4], wit[5], wit[6]
+        return _hit(
+            avx, avy, aeang, aetab, sa, na, bvx, bvy, beang, betab, sb, nb, sp, witness, GJK_MAX_ITER, p0, p1, k, lam
+        )
     return False, GJK_MAX_ITER, 0.0, 0.0, 0.0, 0.0, 0.0
+
+
+@jit
+def _hit(avx, avy, aeang, aetab, sa, na, bvx, bvy, beang, betab, sb, nb, sp, witness, it, p0, p1, k, lam):
+    """GJK's return for a hit on the simplex ``p0`` (k = 1) or segment ``p0 p1`` at weight ``lam``."""
+    if not witness:
+        return True, it, 0.0, 0.0, 0.0, 0.0, 0.0
+    w = _entry_witness(avx, avy, aeang, aetab, sa, na, bvx, bvy, beang, betab, sb, nb, sp, p0)
+    if k == 2:
+        w = _mix(w, _entry_witness(avx, avy, aeang, aetab, sa, na, bvx, bvy, beang, betab, sb, nb, sp, p1), lam)
+    return True, it, w[0], w[1], w[2], w[3], w[4]
 
 
 @jit
 def gjk_generators(avx, avy, aeang, aetab, an, gx, gy, geang, getab, gn, wx, wy, T, tol):
     """GJK of polygon A (centred) vs conv(generators) + [0, T] w."""
     sp = (0.0, 0.0, 1.0, 0.0, 0.0, 1.0, wx, wy, 0.0, 0.0, 1.0, 0.0, T, 0.0, 0.0, 0.0)
-    return gjk(avx, avy, aeang, aetab, 0, an, gx, gy, geang, getab, 0, gn, sp, tol)
+    return gjk(avx, avy, aeang, aetab, 0, an, gx, gy, geang, getab, 0, gn, sp, tol, True)

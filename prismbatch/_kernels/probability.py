@@ -256,7 +256,9 @@ def _count_loop(
             if not usable:
                 bad[t] = s
                 break
-            hit = pair_of_sets(a, b, 0, 0, pos_a[t], rot_a[t], inv_a, pos_b[t], rot_b[t], rtol, atol, eps, None)[0]
+            # (a hit is all the estimate needs: no contact point, witness=False)
+            Pa, Ra, Pb, Rb = pos_a[t], rot_a[t], pos_b[t], rot_b[t]
+            hit = pair_of_sets(a, b, 0, 0, Pa, Ra, inv_a, Pb, Rb, rtol, atol, eps, False, None)[0]
             if hit:
                 count += 1
                 # a running shift (the largest log weight) keeps the sums' relative error for tiny weights

@@ -205,12 +205,14 @@ def pair_test(
     r22,
     tol,
     imax,
+    witness,
     trace,
 ):
     """Collision test for one pair in a's centred frame.
 
     Returns (hit, case, cx, cy, cz): the case number and, on a hit, a contact
-    point (a's centred frame) lying within tol of both bodies. ``trace`` is
+    point (a's centred frame) lying within tol of both bodies; with ``witness``
+    false the contact may be NaN (the planar GJK then skips it). ``trace`` is
     None (no tracing) or a float array of TRACE_SIZE that receives the
     intermediate quantities (fields TRACE_FIELDS, exit codes EXITS). ``imax``
     is b's end-face vertex deepest into a (``extreme_vertex`` in direction
@@ -330,7 +332,7 @@ def pair_test(
     # --- exact planar test: GJK of P_a against the projection of b ---
     imin = extreme_vertex(bvx, bvy, beang, betab, sb, nb, -hx, -hy)
     sp = (px, py, r00, r01, r10, r11, r02, r12, hx, hy, pz, ceff, T, tz, float(imin), float(imax))
-    hit, iters, ax, ay, u, v, t = gjk(avx, avy, aeang, aetab, sa, na, bvx, bvy, beang, betab, sb, nb, sp, tol)
+    hit, iters, ax, ay, u, v, t = gjk(avx, avy, aeang, aetab, sa, na, bvx, bvy, beang, betab, sb, nb, sp, tol, witness)
     if trace is not None:
         trace[T_IBOT] = imin
         trace[T_GJK_HIT] = 1.0 if hit else 0.0
@@ -338,6 +340,8 @@ def pair_test(
     _done(trace, 9 if hit else 10, case, hit)
     if not hit:
         return False, case, nan, nan, nan
+    if not witness:
+        return True, case, nan, nan, nan
     bx = px + r00 * u + r01 * v + r02 * t
     by = py + r10 * u + r11 * v + r12 * t
     bz = pz + r20 * u + r21 * v + r22 * t
