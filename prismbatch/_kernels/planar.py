@@ -392,10 +392,12 @@ def gjk(avx, avy, aeang, aetab, sa, na, bvx, bvy, beang, betab, sb, nb, sp, tol,
     vy_ = p0[1]
     last_vv = math.inf
     lower = -math.inf  # best lower bound of the distance so far
+    hit_at = -1  # the iteration that found |v| <= tol
     for it in range(GJK_MAX_ITER):
         vv = vx_ * vx_ + vy_ * vy_
         if vv <= tol2:
-            return _hit(avx, avy, aeang, aetab, sa, na, bvx, bvy, beang, betab, sb, nb, sp, witness, it, p0, p1, k, lam)
+            hit_at = it
+            break
         ka = extreme_vertex(avx, avy, aeang, aetab, sa, na, -vx_, -vy_)
         bx, by, bu, bv, bt = support_spec(bvx, bvy, beang, betab, sb, nb, sp, vx_, vy_)
         ax = avx[sa + ka]
@@ -462,24 +464,20 @@ def gjk(avx, avy, aeang, aetab, sa, na, bvx, bvy, beang, betab, sb, nb, sp, tol,
             else:
                 p0 = q
                 p1 = pn
-    # Iteration cap (cycling at rounding level): touching counts, so a
-    # distance not shown to exceed tol is a hit.
-    if lower <= tol:
-        return _hit(
-            avx, avy, aeang, aetab, sa, na, bvx, bvy, beang, betab, sb, nb, sp, witness, GJK_MAX_ITER, p0, p1, k, lam
-        )
-    return False, GJK_MAX_ITER, 0.0, 0.0, 0.0, 0.0, 0.0
-
-
-@jit
-def _hit(avx, avy, aeang, aetab, sa, na, bvx, bvy, beang, betab, sb, nb, sp, witness, it, p0, p1, k, lam):
-    """GJK's return for a hit on the simplex ``p0`` (k = 1) or segment ``p0 p1`` at weight ``lam``."""
+    if hit_at < 0:
+        # Iteration cap (cycling at rounding level): touching counts, so a
+        # distance not shown to exceed tol is a hit.
+        if lower > tol:
+            return False, GJK_MAX_ITER, 0.0, 0.0, 0.0, 0.0, 0.0
+        hit_at = GJK_MAX_ITER
+    # A hit on the point p0 (k = 1) or the segment p0 p1 at weight lam (one exit: each call of a
+    # helper with other literal arguments would compile another copy of it).
     if not witness:
-        return True, it, 0.0, 0.0, 0.0, 0.0, 0.0
+        return True, hit_at, 0.0, 0.0, 0.0, 0.0, 0.0
     w = _entry_witness(avx, avy, aeang, aetab, sa, na, bvx, bvy, beang, betab, sb, nb, sp, p0)
     if k == 2:
         w = _mix(w, _entry_witness(avx, avy, aeang, aetab, sa, na, bvx, bvy, beang, betab, sb, nb, sp, p1), lam)
-    return True, it, w[0], w[1], w[2], w[3], w[4]
+    return True, hit_at, w[0], w[1], w[2], w[3], w[4]
 
 
 @jit
