@@ -513,3 +513,51 @@ def test_wrap_is_the_remainder_bit_for_bit(period):
     assert np.array_equal(got, want)
     assert 0.0 <= got.min() and got.max() <= period
     assert np.isnan(wrap(np.nan, period))
+
+
+# ---------------------------------------------------------------------------
+# the planar GJK without its witness (collide's status-only path)
+# ---------------------------------------------------------------------------
+
+
+def test_gjk_without_witness_decides_as_with_it():
+    """``gjk(..., witness=False)`` (collide without contacts) takes the same decision after the same
+    iterations as with the witness, and leaves the witness at zero; with it, a hit's point of A lies
+    in A and within tol of its point of B. Polygon A against polygon B moved by p and swept along w
+    (the spec of a projected prism), placed to touch, overlap and miss."""
+    from prismbatch._kernels.planar import gjk, point_polygon_distance
+    from prismbatch.shapes import PrismSet
+
+    rng = seeded("gjk/witness")
+    hits = misses = 0
+    for case in range(400):
+        sa, sb = (PrismSet([random_polygon(rng, sample_vertex_count(rng, "small" if case % 2 else "medium"))])
+                  for _ in range(2))  # fmt: skip
+        direction = rng.normal(size=2)
+        w = direction / np.hypot(*direction)
+        # B's vertex furthest along -w put on A's vertex furthest along w, then moved along w by up to
+        # +-0.5 or +-tol/10 (touching: the nearest pair is then these two vertices), or anywhere
+        ka, kb = np.argmax(sa.vx * w[0] + sa.vy * w[1]), np.argmax(-(sb.vx * w[0] + sb.vy * w[1]))
+        gap = rng.choice([-0.5, -0.1 * TOL, 0.0, 0.1 * TOL, 0.5]) * rng.random()
+        vertex_to_vertex = np.array([sa.vx[ka] - sb.vx[kb], sa.vy[ka] - sb.vy[kb]])
+        p = vertex_to_vertex + gap * w if case % 4 else rng.uniform(-4.0, 4.0, 2)
+        sweep = rng.uniform(0.0, 3.0)
+        sp = (p[0], p[1], 1.0, 0.0, 0.0, 1.0, w[0], w[1], 0.0, 0.0, 1.0, 0.0, sweep, 0.0, 0.0, 0.0)
+        arrays = (sa.vx, sa.vy, sa.edge_angle, sa.edge_table, 0, len(sa.vx))
+        arrays += (sb.vx, sb.vy, sb.edge_angle, sb.edge_table, 0, len(sb.vx))
+        full = gjk(*arrays, sp, TOL, True)
+        bare = gjk(*arrays, sp, TOL, False)
+        assert bare[:2] == full[:2], (case, bare, full)
+        assert bare[2:] == (0.0,) * 5, (case, bare)
+        if full[0]:
+            hits += 1
+            depth = point_polygon_distance(
+                sa.vx, sa.vy, sa.vertex_angle, sa.inv_edge_len, 0, len(sa.vx), full[2], full[3]
+            )
+            assert depth >= -1e-12, (case, full, depth)
+            _, _, ax, ay, u, v, t = full
+            gap = np.hypot(ax - (p[0] + u + w[0] * t), ay - (p[1] + v + w[1] * t))
+            assert gap <= TOL + 1e-12, (case, full, gap)
+        else:
+            misses += 1
+    assert hits >= 100 and misses >= 100, (hits, misses)
