@@ -556,8 +556,8 @@ def test_gjk_without_witness_decides_as_with_it():
             )
             assert depth >= -1e-12, (case, full, depth)
             _, _, ax, ay, u, v, t = full
-            gap = np.hypot(ax - (p[0] + u + w[0] * t), ay - (p[1] + v + w[1] * t))
-            assert gap <= TOL + 1e-12, (case, full, gap)
+            apart = np.hypot(ax - (p[0] + u + w[0] * t), ay - (p[1] + v + w[1] * t))
+            assert apart <= TOL + 1e-12, (case, full, apart)
         else:
             misses += 1
     assert hits >= 100 and misses >= 100, (hits, misses)
