@@ -7,6 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._kernels import batch as _batch
+from ._kernels.checks import poses_ok
 from ._kernels.distance_pair import distance_pair
 from ._kernels.projection import CASES
 from .checks import check_flag, real_scalar
@@ -269,12 +270,44 @@ class Collider(OnePairQueries):
 
     def _batch_poses(self, pos_a, rot_a, pos_b, rot_b, quat_order, parallel):
         """``(n, pos_a, rot_a, pos_b, rot_b)``: the poses checked, sized and converted once for the kernels."""
+        if quat_order is None:
+            plain = self._plain_batch(pos_a, rot_a, pos_b, rot_b, parallel)
+            if plain is not None:
+                return plain
         pa, ra = as_pose(pos_a, rot_a, quat_order=quat_order, name="a", dtype=self.dtype, parallel=parallel)
         pb, rb = as_pose(pos_b, rot_b, quat_order=quat_order, name="b", dtype=self.dtype, parallel=parallel)
         n = common_batch_size(pa, ra, pb, rb, n_shapes=self._n_shapes)
         dt = self.dtype
         pa, pb = kernel_array(pa, (-1, 3), dt), kernel_array(pb, (-1, 3), dt)
         ra, rb = kernel_array(ra, (-1, 3, 3), dt), kernel_array(rb, (-1, 3, 3), dt)
+        return n, pa, ra, pb, rb
+
+    def _plain_batch(self, pos_a, rot_a, pos_b, rot_b, parallel):
+        """:meth:`_batch_poses` of a serial batch whose arrays the kernels take as they are (C-contiguous,
+        writeable, aligned ndarrays of the compute dtype; positions (3,) or (N, 3), rotation matrices (3, 3)
+        or (N, 3, 3); sizes that broadcast), judged valid by one compiled pass; else None: the pose parser
+        then judges and names what is wrong. Its NumPy checks cost some 50 µs a call, the kernel on a
+        small batch a few."""
+        dt, sizes = self.dtype, []
+        for x, core in ((pos_a, 1), (rot_a, 2), (pos_b, 1), (rot_b, 2)):
+            if x.__class__ is not _ndarray or x.dtype != dt:
+                return None
+            shape, flags = x.shape, x.flags
+            if not (flags.c_contiguous and flags.writeable and flags.aligned) or shape[-core:] != (3, 3)[:core]:
+                return None
+            if x.ndim == core + 1:
+                sizes.append(shape[0])
+            elif x.ndim != core:
+                return None
+        if self._n_shapes is not None:
+            sizes.append(self._n_shapes)
+        big = {s for s in sizes if s != 1}
+        n = big.pop() if big else 1
+        if big or _batch.use_parallel(parallel, n):  # sizes that do not broadcast; a batch checked on threads
+            return None
+        pa, ra, pb, rb = pos_a.reshape(-1, 3), rot_a.reshape(-1, 3, 3), pos_b.reshape(-1, 3), rot_b.reshape(-1, 3, 3)
+        if not poses_ok(pa, ra, pb, rb, self._max_magnitude, self._ortho_tol):
+            return None
         return n, pa, ra, pb, rb
 
     def explain(self, pos_a, rot_a=None, pos_b=None, rot_b=None, *, quat_order=None):

@@ -6,13 +6,15 @@ message says how to fix the input.
 """
 
 import math
+import sys
 
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
 import prismbatch as pb
-from prismbatch._kernels.checks import first_bad_rotation
+from prismbatch._kernels.checks import first_bad_rotation, poses_ok
+from prismbatch.config import SUPPORTED_RANGE
 from prismbatch.poses import ORTHO_TOL_F32, ORTHO_TOL_F64, as_pose, as_rotations, ortho_tolerance
 
 A = pb.Prism.regular(5, 2.0)
@@ -169,14 +171,11 @@ def _first_bad_reference(Rs, tol):
     return -1, 0, 0.0
 
 
-def test_compiled_check_matches_a_plain_reference():
-    """The branch-free pass of first_bad_rotation against the plain rule, on matrices at the
-    tolerance's edge (one entry moved by 0.3 to 3 tol, the whole scaled, two columns sheared),
-    non-finite entries in every place and reflections, one matrix at a time and as batches."""
-    rng = np.random.default_rng(11)
-    tol = ORTHO_TOL_F64
+def _edge_rotations(rng, n, tol):
+    """n rotations, most at the tolerance's edge (one entry moved by 0.3 to 3 tol, the whole scaled, two
+    columns sheared), non-finite entries in every place, reflections, and good ones."""
     cases = []
-    for _ in range(300):
+    for _ in range(n):
         M = Rotation.random(random_state=rng).as_matrix()
         kind = rng.integers(0, 6)
         if kind == 1:
@@ -191,6 +190,15 @@ def test_compiled_check_matches_a_plain_reference():
             j, k = rng.choice(3, 2, replace=False)
             M[:, j] += rng.choice([-1, 1]) * rng.uniform(0.3, 3.0) * tol * M[:, k]
         cases.append(M)
+    return cases
+
+
+def test_compiled_check_matches_a_plain_reference():
+    """The branch-free pass of first_bad_rotation against the plain rule, on matrices at the
+    tolerance's edge, non-finite entries in every place and reflections, one matrix at a time and
+    as batches."""
+    tol = ORTHO_TOL_F64
+    cases = _edge_rotations(np.random.default_rng(11), 300, tol)
     kinds = []
     for M in cases:
         want = _first_bad_reference([M], tol)
@@ -205,3 +213,76 @@ def test_compiled_check_matches_a_plain_reference():
         want = _first_bad_reference(batch[start:], tol)
         got = first_bad_rotation(batch[start:].copy(), tol)
         assert got[:2] == want[:2]
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_the_small_batch_check_matches_the_plain_rule(dtype):
+    """poses_ok, the one compiled pass that clears a small batch of plain arrays, against the plain
+    rule: every coordinate within the dtype's range (NaN and inf outside), every matrix as
+    _first_bad_reference judges it in float64, on batches of 1 to 9 poses with one or no bad entry:
+    coordinates at the limit, one ulp past it, non-finite; rotations at the tolerance's edge."""
+    rng = np.random.default_rng(12)
+    dt = np.dtype(dtype)
+    limit = SUPPORTED_RANGE[dt.name][1]
+    tol = ortho_tolerance(dt, dt)
+    over = float(np.nextafter(dt.type(limit), dt.type(np.inf)))
+    edge_coords = [limit, -limit, over, -over, np.nan, np.inf, -np.inf, 0.0]
+    outcomes = set()
+    for _ in range(400):
+        n = [int(rng.integers(1, 10)) for _ in range(4)]
+        pos = [rng.uniform(-1e3, 1e3, (k, 3)).astype(dt) for k in n[::2]]
+        rot = [
+            np.array(
+                _edge_rotations(rng, k, tol)
+                if rng.random() < 0.3
+                else Rotation.random(k, random_state=rng).as_matrix(),
+                dtype=dt,
+            )
+            for k in n[1::2]
+        ]
+        if rng.random() < 0.5:
+            p = pos[rng.integers(2)]
+            p[rng.integers(p.shape[0]), rng.integers(3)] = edge_coords[rng.integers(len(edge_coords))]
+        want = all(abs(float(v)) <= limit for p in pos for v in p.flat)
+        want &= all(_first_bad_reference(r.astype(np.float64), tol)[1] == 0 for r in rot)
+        assert poses_ok(pos[0], rot[0], pos[1], rot[1], limit, tol) == want
+        outcomes.add(want)
+    assert outcomes == {True, False}
+
+
+def test_a_plain_batch_is_cleared_in_one_pass_and_a_bad_one_named_as_before(monkeypatch):
+    """Collider's batch path clears plain arrays without the NumPy pose parser, to the same answer; a
+    batch with a bad pose goes to the parser, which names it as it did (and the same for arrays the
+    pass does not take: lists, another dtype)."""
+    collide_module = sys.modules["prismbatch.collide"]  # (the package's name collide is the function)
+
+    col = pb.Collider(pb.Prism.regular(6, 1.0), pb.Prism.regular(5, 1.5))
+    rng = np.random.default_rng(3)
+    pos_a, pos_b = rng.normal(size=(7, 3)), rng.normal(size=(7, 3))
+    rot_a, rot_b = Rotation.random(7, random_state=rng).as_matrix(), Rotation.random(1, random_state=rng).as_matrix()
+    via_parser = col.collide(pos_a.tolist(), rot_a.tolist(), pos_b.tolist(), rot_b[0].tolist(), contact=True)
+    parsed = []
+    real_as_pose = collide_module.as_pose
+    monkeypatch.setattr(collide_module, "as_pose", lambda *a, **k: parsed.append(1) or real_as_pose(*a, **k))
+    for rb in (rot_b, rot_b[0]):
+        got = col.collide(pos_a, rot_a, pos_b, rb, contact=True)
+        np.testing.assert_array_equal(got.hit, via_parser.hit)
+        np.testing.assert_array_equal(got.case, via_parser.case)
+        np.testing.assert_array_equal(got.contact, via_parser.contact)
+        assert col.distance(pos_a, rot_a, pos_b, rb).distance.shape == (7,)
+    assert parsed == []
+    bad_rot = rot_a.copy()
+    bad_rot[4, 0, 0] = 1.001
+    for args, where in (
+        ((pos_a, bad_rot, pos_b, rot_b), "rot_a[4]"),
+        ((pos_a, rot_a, pos_b[:, ::-1] * 1e300, rot_b), "pos_b[0]"),
+    ):
+        with pytest.raises(ValueError) as err:
+            col.collide(*args)
+        assert where in str(err.value)
+        assert parsed
+        with pytest.raises(ValueError) as err_list:
+            col.collide(*(x.tolist() for x in args))
+        assert str(err.value) == str(err_list.value)
+    with pytest.raises(ValueError, match="batch sizes do not match"):
+        col.collide(pos_a, rot_a, pos_b[:3], rot_b)
