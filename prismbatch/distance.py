@@ -10,6 +10,7 @@ is in :mod:`prismbatch._kernels.distance` and ``docs/methods/distance.md``.
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -203,6 +204,21 @@ def pair_distance_result(out, witness):
 
 
 _empty, _array, _int8 = np.empty, np.array, np.int8
+#: Each Python thread's workspace for serial calls, built on its first: building one (thirteen arrays
+#: returned from a compiled call) cost a small batch more than its distances.
+_serial_work = threading.local()
+
+
+def _workspace(blocks):
+    """A workspace of GJK and EPA with ``blocks`` blocks (some 150 kB each); one block is the calling
+    thread's own, kept (the kernels need no particular contents on entry)."""
+    room = EPA_ROOM[0]
+    if blocks != 1:
+        return workspace(blocks, room)
+    kept = getattr(_serial_work, "kept", None)
+    if kept is None or kept[0] != room:
+        kept = _serial_work.kept = (room, workspace(1, room))
+    return kept[1]
 
 
 def signed_distance(a_arrays, b_arrays, n, pos_a, rot_a, pos_b, rot_b, *, rtol, atol, dtype, witness, parallel):
@@ -235,7 +251,7 @@ def signed_distance(a_arrays, b_arrays, n, pos_a, rot_a, pos_b, rot_b, *, rtol, 
     normal, point_a, point_b = np.empty((k, 3)), np.empty((k, 3)), np.empty((k, 3))
     parallel = use_parallel(parallel, n)
     kern = distance_parallel if parallel else distance_serial
-    work = workspace(work_blocks(n, parallel), EPA_ROOM[0])  # GJK's and EPA's, some 150 kB a block
+    work = _workspace(work_blocks(n, parallel))
     args = (a_arrays.floats, a_arrays.ints, b_arrays.floats, b_arrays.ints, (pos_a, rot_a, pos_b, rot_b), float(rtol))
     args += (float(atol), float(np.finfo(dtype).eps), bool(witness))
     outs = ((dist, status, tol, solver), (normal, point_a, point_b))

@@ -499,6 +499,39 @@ def test_serial_and_parallel_agree_exactly():
         np.testing.assert_array_equal(getattr(s, name), getattr(p, name))
 
 
+def test_a_thread_reuses_its_workspace_and_threads_keep_their_own():
+    """Serial calls reuse the calling thread's GJK and EPA workspace: a batch gives the same outputs to
+    the bit after other batches (deep, shallow, apart) in the same thread and while four threads run
+    other batches at the same time (the kernels hold the GIL today: that part guards a move to nogil)."""
+    import threading
+
+    rng = np.random.default_rng(47)
+    col = pb.Collider(pb.Prism.regular(36, 2.0), pb.Prism.regular(37, 2.5))
+    pa, ra, pbb, rb = free_poses(240, rng, radius=2.5)
+    batches = [(pa, ra, pa + t * (pbb - pa), rb) for t in (0.2, 0.9, 1.0, 3.0)]
+    alone = [col.distance(*P, witness=True, parallel=False) for P in batches]
+    again, errors = {}, []
+
+    def worker(k):
+        try:
+            for _ in range(3):
+                again[k] = col.distance(*batches[k], witness=True, parallel=False)
+        except Exception as exc:  # (reported below: an exception in a thread is otherwise lost)
+            errors.append(exc)
+
+    threads = [threading.Thread(target=worker, args=(k,)) for k in range(len(batches))]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert not errors
+    for k in range(len(batches)):
+        for res in (again[k], col.distance(*batches[k], witness=True, parallel=False)):
+            for name in ("distance", "status", "tol", "solver", "normal", "point_a", "point_b"):
+                np.testing.assert_array_equal(getattr(res, name), getattr(alone[k], name))
+    assert (alone[0].status == PENETRATING).sum() > 100 and (alone[3].status == SEPARATED).sum() > 100
+
+
 @pytest.mark.parametrize("parallel", [False, True])
 def test_pairs_out_of_the_batch_room_are_rerun(monkeypatch, parallel):
     """The batch loop runs EPA in a fixed room and reruns the pairs that run out of it with more:
