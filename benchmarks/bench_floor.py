@@ -16,7 +16,8 @@ cache of the machine the README's figures come from) and, at 36 and 3600 vertice
 2,000,000 pairs (384 MB: every pose comes from main memory, as in a bulk run, and the floor
 is then bound by memory, not by arithmetic). Then the latency of one query
 (``collide_pair``, ``Collider.collide`` and ``pb.collide`` on one plain pair,
-against a trivial ``@njit`` call taking the same four arrays), two threads
+against a trivial ``@njit`` call taking the same four arrays; ``Collider.collide`` on batches
+of 10 and 100 pairs and ``Collider.distance`` on 10, per call), two threads
 against one on 10^6 pairs, status only against contacts, float32 against
 float64, the cold compile of the serial and of the parallel path (each in a fresh process with an
 empty Numba cache), and the build of a ``PrismSet`` of 100,000 polygons.
@@ -117,12 +118,17 @@ def latency_rows(repeats):
     """One query: µs per call of each entry point on one plain pair, and a trivial njit call."""
     a, b = pb.Prism.regular(36, RADIUS_A), pb.Prism.regular(36, RADIUS_B)
     col = pb.Collider(a, b)
-    one = tuple(np.ascontiguousarray(x[0]) for x in facing_poses(1, np.random.default_rng(1), radius=RADIUS_B))
+    poses = tuple(np.ascontiguousarray(x) for x in facing_poses(100, np.random.default_rng(1), radius=RADIUS_B))
+    one, ten = tuple(x[0] for x in poses), tuple(x[:10] for x in poses)
     calls = {
         "trivial @njit call, same 4 arrays": lambda: trivial_call(*one),
         "Collider.collide_pair": lambda: col.collide_pair(*one),
         "Collider.collide, one pair": lambda: col.collide(*one),
         "pb.collide, one pair": lambda: pb.collide(a, b, *one),
+        # small batches (a controller's few candidates): the per-call cost around the kernel
+        "Collider.collide, a batch of 10": lambda: col.collide(*ten),
+        "Collider.collide, a batch of 100": lambda: col.collide(*poses),
+        "Collider.distance, a batch of 10": lambda: col.distance(*ten),
     }
     return {k: 1e6 * v for k, v in seconds_per_call(calls, repeats).items()}
 
