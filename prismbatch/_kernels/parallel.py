@@ -156,8 +156,10 @@ def tilted_overlap(P, ix, Ra, Rb, dx, dy, dz, ex, ey, ez):
     of the angle is at most about tan^2 of the tilt (about |e|^2: both arcs rise by at most |e| from
     their equators), so each of a's edges is paired with b's edges within a window of 8 |e|^2 + 1e-6,
     found by one extreme-vertex search and a scan: O((n_a + n_b) log n) supports. Beyond
-    |e|^2 = WIDE every pair is tried (O(n_a n_b): 0.1-0.2 s for two 3600-gons); EPA has not been
-    seen to stop there.
+    |e|^2 = WIDE every pair is tried (O(n_a n_b): 0.1-0.3 s for two 3600-gons): EPA's first room ran out
+    there on deep overlaps of 3600-gons, so beyond :data:`~.distance.SAT_FIRST` EPA gets its larger
+    rooms first (polygons with more than :data:`~.distance.SAT_SMALL` pairs of edges) and this scan
+    comes only where the largest runs out.
     """
     avx, avy = P[0], P[1]
     bvx, bvy = P[4], P[5]
