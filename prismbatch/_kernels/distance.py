@@ -144,6 +144,7 @@ def _set_face(V, FV, FN, FG, f, i, j, k):
         n = (n[0] / nn, n[1] / nn, n[2] / nn)
     FN[f, 0], FN[f, 1], FN[f, 2] = n
     FN[f, 3] = (dot(n, row(V, i)) + dot(n, row(V, j)) + dot(n, row(V, k))) / 3.0
+    FN[f, 4] = FN[f, 3] if FG[f] else math.inf  # its key in the search for the nearest face (inf: never)
 
 
 @jit
@@ -164,9 +165,10 @@ def epa(P, ix, fr, cone, W, I, m, acc, work):
     ok, nx, ny, nz = _tetrahedron(P, ix, fr, cone, W, I, m, V, VI, acc)
     if not ok:
         return 0.0, nx, ny, nz, FLAT
-    alive[:] = False
-    start[:] = -1  # new face whose horizon edge starts at a vertex
+    # Only the faces and vertices made here are read, each set when made: nothing to clear (the largest
+    # room's arrays would cost a rerun pair some microseconds).
     for f, (i, j, k) in enumerate(((0, 2, 1), (0, 1, 3), (1, 2, 3), (0, 3, 2))):
+        start[f] = -1  # (vertex f) the new face whose horizon edge starts at the vertex
         _set_face(V, FV, FN, FG, f, i, j, k)
         alive[f] = True
     for f in range(4):  # neighbours: the face holding the reversed edge
@@ -180,9 +182,9 @@ def epa(P, ix, fr, cone, W, I, m, acc, work):
     while True:
         f = -1
         dmin = math.inf
-        for g in range(nf):
-            if alive[g] and FG[g] and FN[g, 3] < dmin:
-                dmin = FN[g, 3]
+        for g in range(nf):  # (one compare a face: a dead or set-aside face's key is inf)
+            if FN[g, 4] < dmin:
+                dmin = FN[g, 4]
                 f = g
         if f < 0:
             return (bh, bx, by, bz, EPA_DEPTH) if bh < math.inf else (0.0, 1.0, 0.0, 0.0, FLAT)
@@ -202,13 +204,16 @@ def epa(P, ix, fr, cone, W, I, m, acc, work):
         if stuck:  # no new vertex, yet short of the support: a sliver's normal is off; set the face aside
             bh, bx, by, bz = hw, nx, ny, nz
             FG[f] = False
+            FN[f, 4] = math.inf
             continue
         iv = nv
         V[iv, 0], V[iv, 1], V[iv, 2] = x, y, z
         VI[iv, 0], VI[iv, 1], VI[iv, 2] = ia, ib, kc
+        start[iv] = -1
         nv += 1
         # Faces seen from the new point, by a walk from f; their rim is the horizon.
         alive[f] = False
+        FN[f, 4] = math.inf
         for sp, e in enumerate((2, 1, 0)):
             stack[sp, 0], stack[sp, 1] = f, e
         sp = 3
@@ -224,6 +229,7 @@ def epa(P, ix, fr, cone, W, I, m, acc, work):
                 k += 1
             if FN[h, 0] * x + FN[h, 1] * y + FN[h, 2] * z > FN[h, 3] - SEEN_SLACK * acc:
                 alive[h] = False
+                FN[h, 4] = math.inf
                 stack[sp, 0], stack[sp, 1] = h, (k + 2) % 3
                 stack[sp + 1, 0], stack[sp + 1, 1] = h, (k + 1) % 3
                 sp += 2
@@ -262,8 +268,8 @@ def epa(P, ix, fr, cone, W, I, m, acc, work):
 def workspace(blocks, room):
     """Scratch of ``blocks`` independent distance computations with EPA room for ``room`` vertices:
     GJK's simplex and a copy (W 8 x 3, I 8 x 3, lam 8), then EPA's polytope (vertices, faces with
-    their neighbours, normals and flags, the walk's stack, the horizon and its links), each array
-    with a leading axis of ``blocks`` (:func:`block_of` takes one)."""
+    their neighbours, normals (with offset and search key) and flags, the walk's stack, the horizon
+    and its links), each array with a leading axis of ``blocks`` (:func:`block_of` takes one)."""
     b, mv, mf = blocks, room, 8 * room
     return (
         np.empty((b, 8, 3)),
@@ -273,7 +279,7 @@ def workspace(blocks, room):
         np.empty((b, mv, 3), dtype=np.int64),
         np.empty((b, mf, 3), dtype=np.int64),
         np.empty((b, mf, 3), dtype=np.int64),
-        np.empty((b, mf, 4)),
+        np.empty((b, mf, 5)),
         np.empty((b, mf), dtype=np.bool_),
         np.empty((b, mf), dtype=np.bool_),
         np.empty((b, 2 * mf + 3, 2), dtype=np.int64),
