@@ -324,23 +324,6 @@ TILTED_PAIR = (
 )  # fmt: skip
 
 
-def test_nearly_parallel_3600_gons_where_epa_stopped():
-    """The recorded pair through the API: the depth against the separating-axis reference, the
-    witnesses on their bodies and apart by distance times the normal."""
-    a, b = pb.Prism.regular(3600, 2.0), pb.Prism.regular(3600, 2.5)
-    pa, Ra, pb_, Rb = (np.array([float.fromhex(x) for x in v]) for v in TILTED_PAIR)
-    Ra, Rb = Ra.reshape(3, 3), Rb.reshape(3, 3)
-    A, B = Body(a.xy, pa, Ra), Body(b.xy, pb_, Rb)
-    sep, _ = sat_separation(A, B)
-    for parallel in (False, True):
-        r = distance(a, b, pa, Ra, pb_, Rb, witness=True, parallel=parallel)
-        tol = r.tol[0]
-        assert r.solver[0] == AXES_DEPTH and r.status[0] == PENETRATING
-        assert abs(r.distance[0] - sep) <= 10 * tol, (r.distance[0], sep)
-        assert max(abs(residual(A, r.point_a)[0]), abs(residual(B, r.point_b)[0])) <= tol
-        np.testing.assert_allclose(r.point_b - r.point_a, r.distance[:, None] * r.normal, rtol=0, atol=tol)
-
-
 #: Two regular 3600-gons (radii 2 and 2.5), deep (4.48 of 4.5), axes 12.9 degrees apart: EPA's first room ran
 #: out and the separating-axis scan over every pair of end edges took 0.26 s; EPA with more room, 0.1 ms.
 WIDE_TILT_PAIR = (
@@ -355,24 +338,29 @@ WIDE_TILT_PAIR = (
 )  # fmt: skip
 
 
-@pytest.mark.slow
-def test_tilted_3600_gons_get_epa_room_before_the_separating_axes():
-    """The recorded pair through the batch (serial and parallel) and the one-pair path: EPA's depth (with
-    more room, not the separating-axis scan: the tilt is beyond SAT_FIRST), against the separating-axis
-    reference within 10 tol, the witnesses on their bodies and apart by distance times the normal."""
+@pytest.mark.parametrize(
+    "pair, solver",
+    [
+        pytest.param(TILTED_PAIR, AXES_DEPTH, id="3.7e-6 rad"),
+        pytest.param(WIDE_TILT_PAIR, EPA_DEPTH, id="12.9 degrees", marks=pytest.mark.slow),  # (its reference: 8 s)
+    ],
+)
+def test_recorded_3600_gon_depths_where_epa_stopped(pair, solver):
+    """The recorded pairs through the one-pair path and the batch (serial and parallel): the separating-axis
+    depth of the nearly parallel one, EPA's (with more room) of the one tilted beyond SAT_FIRST, against the
+    separating-axis reference within 10 tol, the witnesses on their bodies and apart by distance times the
+    normal."""
     a, b = pb.Prism.regular(3600, 2.0), pb.Prism.regular(3600, 2.5)
-    pa, Ra, pb_, Rb = (np.array([float.fromhex(x) for x in v]) for v in WIDE_TILT_PAIR)
+    pa, Ra, pb_, Rb = (np.array([float.fromhex(x) for x in v]) for v in pair)
     Ra, Rb = Ra.reshape(3, 3), Rb.reshape(3, 3)
-    assert ((Rb[:, 2] - Ra[:, 2]) ** 2).sum() > SAT_FIRST and Ra[:, 2] @ Rb[:, 2] > 0
+    assert (((Rb[:, 2] - Ra[:, 2]) ** 2).sum() > SAT_FIRST) == (solver == EPA_DEPTH) and Ra[:, 2] @ Rb[:, 2] > 0
     A, B = Body(a.xy, pa, Ra), Body(b.xy, pb_, Rb)
     sep, _ = sat_separation(A, B)
-    col = pb.Collider(a, b)
-    one = col.distance(pa, Ra, pb_, Rb, witness=True)
-    for r in [one] + [
-        distance(a, b, pa[None], Ra[None], pb_[None], Rb[None], witness=True, parallel=p) for p in (False, True)
-    ]:
+    one = pb.Collider(a, b).distance(pa, Ra, pb_, Rb, witness=True)
+    batch = [distance(a, b, pa[None], Ra[None], pb_[None], Rb[None], witness=True, parallel=p) for p in (False, True)]
+    for r in [one] + batch:
         tol = r.tol[0]
-        assert r.solver[0] == EPA_DEPTH and r.status[0] == PENETRATING
+        assert r.solver[0] == solver and r.status[0] == PENETRATING
         assert abs(r.distance[0] - sep) <= 10 * tol, (r.distance[0], sep)
         assert max(abs(residual(A, r.point_a)[0]), abs(residual(B, r.point_b)[0])) <= tol
         np.testing.assert_allclose(r.point_b - r.point_a, r.distance[:, None] * r.normal, rtol=0, atol=tol)
