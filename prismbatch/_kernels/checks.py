@@ -101,7 +101,7 @@ first_bad_rotation_parallel = jit(parallel=True)(_first_bad_rotation_chunks)
 def poses_ok(pos_a, rot_a, pos_b, rot_b, limit, tol):
     """Whether every position coordinate is within ``limit`` (NaN is not) and every rotation is one
     :func:`_rotation_ok` accepts, in one serial pass over (N, 3) and (N, 3, 3) arrays: the check of a
-    small batch whose arrays the kernels take as they are (the NumPy checks cost some 20 µs a call).
+    small batch whose arrays the kernels take as they are (the NumPy checks cost tens of µs a call).
     Only a yes or no: on no, the NumPy checks run and name the first bad input."""
     ok = True
     for P in (pos_a, pos_b):
