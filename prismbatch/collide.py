@@ -15,6 +15,7 @@ from .config import DEFAULT_RTOL, MAX_RTOL, SUPPORTED_RANGE
 from .pair import OnePairQueries, PairResult, as_written, kernel_array
 from .poses import (
     as_pose,
+    broadcast_size,
     common_batch_size,
     ortho_tolerance,
 )
@@ -287,8 +288,10 @@ class Collider(OnePairQueries):
         writeable, aligned ndarrays of the compute dtype; positions (3,) or (N, 3), rotation matrices (3, 3)
         or (N, 3, 3); sizes that broadcast), judged valid by one compiled pass; else None: the pose parser
         then judges and names what is wrong. On a batch of one the parser took 53 µs a call, this path 9 µs
-        (2026-11-27, a slow day for the machine)."""
-        dt, sizes = self.dtype, []
+        (2026-11-27, a slow day for the machine). The layout is tested here, not by
+        :func:`~prismbatch.pair.kernel_array`'s four calls: with them, collide on 1 to 100 pairs took 12-19 %
+        longer (distance 2-6 %)."""
+        dt, sizes = self.dtype, [self._n_shapes]
         for x, core in ((pos_a, 1), (rot_a, 2), (pos_b, 1), (rot_b, 2)):
             if x.__class__ is not _ndarray or x.dtype != dt:
                 return None
@@ -299,11 +302,8 @@ class Collider(OnePairQueries):
                 sizes.append(shape[0])
             elif x.ndim != core:
                 return None
-        if self._n_shapes is not None:
-            sizes.append(self._n_shapes)
-        big = {s for s in sizes if s != 1}
-        n = big.pop() if big else 1
-        if big or _batch.use_parallel(parallel, n):  # sizes that do not broadcast; a batch checked on threads
+        n = broadcast_size(sizes)
+        if n is None or _batch.use_parallel(parallel, n):  # sizes that do not broadcast; a batch checked on threads
             return None
         pa, ra, pb, rb = pos_a.reshape(-1, 3), rot_a.reshape(-1, 3, 3), pos_b.reshape(-1, 3), rot_b.reshape(-1, 3, 3)
         if not poses_ok(pa, ra, pb, rb, self._max_magnitude, self._ortho_tol):

@@ -255,10 +255,10 @@ def kernel_array(x, shape, dtype):
     Read-only and unaligned inputs (``np.broadcast_to``, frozen arrays, fields of packed records) are
     copied: Numba types them apart, so passing them would compile every batch kernel again.
     """
-    if type(x) is np.ndarray and x.shape == shape and x.dtype == dtype:  # the common case, at no cost
+    if type(x) is np.ndarray and x.dtype == dtype:  # the common case: ``x``, or a view of it
         flags = x.flags
         if flags.c_contiguous and flags.writeable and flags.aligned:
-            return x
+            return x if x.shape == shape else x.reshape(shape)
     a = np.ascontiguousarray(np.reshape(x, shape), dtype=dtype)
     return a if a.flags.writeable and a.flags.aligned else a.copy()
 

@@ -492,8 +492,8 @@ def common_batch_size(pos_a, rot_a, pos_b, rot_b, *, n_shapes=None):
     entries = list(zip(names, sizes))
     if n_shapes is not None:
         entries.append(("shape set", int(n_shapes)))
-    big = {s for _, s in entries if s is not None and s != 1}
-    if len(big) > 1:
+    n = broadcast_size([s for _, s in entries])
+    if n is None:
         parts = []
         for nm, s in entries:
             if s is None:
@@ -503,7 +503,14 @@ def common_batch_size(pos_a, rot_a, pos_b, rot_b, *, n_shapes=None):
             else:
                 parts.append(f"{nm} has {s}")
         raise ValueError("batch sizes do not match: " + ", ".join(parts))
-    return big.pop() if big else 1
+    return n
+
+
+def broadcast_size(sizes):
+    """The batch size ``sizes`` broadcast to (None, a single item, and 1 go with anything); None where
+    two others differ."""
+    big = {s for s in sizes if s is not None and s != 1}
+    return None if len(big) > 1 else (big.pop() if big else 1)
 
 
 def broadcast_poses(pos_a, rot_a, pos_b, rot_b, *, n_shapes=None, dtype=np.float64):
