@@ -627,6 +627,39 @@ def test_float32_witnesses_on_their_bodies(monkeypatch, k):
     assert max(abs(residual(BA, r.point_a[:1])[0]), abs(residual(BB, r.point_b[:1])[0])) <= tol
 
 
+def _recorded(name):
+    """The ``pairs`` of ``tests/data/<name>.json``, hex floats as arrays (Ra, Rb 3 x 3)."""
+    import json
+    from pathlib import Path
+
+    doc = json.loads((Path(__file__).resolve().parents[1] / "data" / f"{name}.json").read_text())
+    return [
+        {k: np.array([float.fromhex(x) for x in v]).reshape((3, 3) if k[0] == "R" else -1) for k, v in case.items()}
+        for case in doc["pairs"]
+    ]
+
+
+def test_witnesses_where_the_foot_point_lies_inside_a_tetrahedron():
+    """Recorded 3600-gon pairs (tests/data/witness_inside_tetrahedron.json) where the witness GJK ends on a
+    tetrahedron around the foot point and takes the weights of its nearest boundary point: both witnesses
+    on their bodies and apart by distance times the normal, through the one-pair path and the batch (serial
+    and parallel). A version that copied stale weights there put point_a 8e6 tol and more off a."""
+    a, b = pb.Prism.regular(3600, 2.0), pb.Prism.regular(3600, 2.5)
+    cases = _recorded("witness_inside_tetrahedron")
+    P = [np.array([c[k] for c in cases]) for k in ("pa", "Ra", "pb", "Rb")]
+    col = pb.Collider(a, b)
+    one = [col.distance(*(x[k] for x in P), witness=True) for k in range(len(cases))]
+    for parallel in (False, True):
+        r = col.distance(*P, witness=True, parallel=parallel)
+        for k in range(len(cases)):
+            assert one[k].distance[0] == r.distance[k] and np.array_equal(one[k].point_a[0], r.point_a[k])
+            A, B = Body(a.xy, P[0][k], P[1][k]), Body(b.xy, P[2][k], P[3][k])
+            tol = r.tol[k]
+            assert r.status[k] == PENETRATING and r.solver[k] == EPA_DEPTH
+            assert max(abs(residual(A, r.point_a[k][None])[0]), abs(residual(B, r.point_b[k][None])[0])) <= tol
+            np.testing.assert_allclose(r.point_b[k] - r.point_a[k], r.distance[k] * r.normal[k], rtol=0, atol=tol)
+
+
 def test_float32_agrees_within_its_tolerance():
     rng = np.random.default_rng(41)
     d = make_pairs(rng, 100, "free", "smallmed")
