@@ -12,25 +12,19 @@
 
 from __future__ import annotations
 
-import hashlib
 import os
 import sys
 import tempfile
-from pathlib import Path
 
 
 def _kernel_cache_dir():
-    """A Numba cache folder keyed by the package's sources.
+    """The test suite's own Numba cache folder, apart from the user's.
 
-    Numba invalidates a cached kernel only when the file that defines it
-    changes, not when a kernel it calls (in another module) does; a stale
-    cache would test old code. Set before prismbatch (and numba) is imported.
+    Each cached kernel is keyed by the sources of all kernels (``prismbatch/_kernels/jit.py``), so an
+    edit anywhere in them compiles anew instead of testing old code. Set before prismbatch (and numba)
+    is imported.
     """
-    src = Path(__file__).resolve().parent.parent / "prismbatch"
-    h = hashlib.sha256()
-    for f in sorted(src.rglob("*.py")):  # the engine, its kernels and the lab
-        h.update(f.read_bytes())
-    return os.path.join(tempfile.gettempdir(), f"prismbatch-numba-{h.hexdigest()[:16]}")
+    return os.path.join(tempfile.gettempdir(), "prismbatch-numba-tests")
 
 
 os.environ.setdefault("NUMBA_CACHE_DIR", _kernel_cache_dir())

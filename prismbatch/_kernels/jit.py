@@ -7,11 +7,14 @@ pairs is written once and compiled as serial and parallel twins
 (:func:`twins`), as umap does. Nothing here changes Numba's global config.
 """
 
+import hashlib
 import sys
 import threading
 import types
+from pathlib import Path
 
 from numba import njit
+from numba.core.caching import FunctionCache
 
 __all__ = ["jit", "twins", "per_dtype", "cache_enabled", "first_call"]
 
@@ -21,6 +24,43 @@ _cache = {"ok": None}  # None: not tried yet
 def cache_enabled():
     """True once a kernel was compiled with the on-disk cache, False after the fallback, None before."""
     return _cache["ok"]
+
+
+def _kernel_sources_digest():
+    """A digest of every kernel module's source (this folder's ``*.py``)."""
+    h = hashlib.sha256()
+    for path in sorted(Path(__file__).resolve().parent.glob("*.py")):
+        h.update(path.name.encode())
+        h.update(path.read_bytes())
+    return h.hexdigest()[:16]
+
+
+#: Part of every cached kernel's key: see :class:`_SourcesKeyedCache`.
+KERNEL_SOURCES = _kernel_sources_digest()
+
+
+class _SourcesKeyedCache(FunctionCache):
+    """Numba's on-disk cache with :data:`KERNEL_SOURCES` in each entry's key.
+
+    Numba keys an entry by the function's own bytecode and its file's time stamp, not by the kernels
+    it calls from other modules, which it compiles in: after a ``git pull`` into an editable install
+    (or any edit), a kernel whose file did not change would load with the old code of a callee whose
+    file did, and run it silently. Keyed by every kernel's source, it compiles anew instead.
+    """
+
+    def _index_key(self, sig, codegen):
+        return (*super()._index_key(sig, codegen), KERNEL_SOURCES)
+
+
+def _key_by_sources(dispatcher):
+    """``dispatcher`` with :class:`_SourcesKeyedCache` in place of Numba's cache (kept if Numba's
+    internals differ from what this expects: the cache then works as Numba's does)."""
+    try:
+        if isinstance(dispatcher._cache, FunctionCache):
+            dispatcher._cache = _SourcesKeyedCache(dispatcher.py_func)
+    except (AttributeError, TypeError):  # pragma: no cover - another Numba's internals
+        pass
+    return dispatcher
 
 
 def jit(func=None, *, refcounts=False, **options):
@@ -61,7 +101,7 @@ def jit(func=None, *, refcounts=False, **options):
                 )
             else:
                 _cache["ok"] = True
-                return out
+                return _key_by_sources(out)
         return njit(cache=False, **options)(f)
 
     return compile_ if func is None else compile_(func)

@@ -10,13 +10,14 @@ import pytest
 OPTIONAL = ("matplotlib", "fcl", "coal", "dask", "distributed", "tqdm", "highspy")
 
 
-def _run(code, **env):
+def _run(code, cwd=None, **env):
     return subprocess.run(
         [sys.executable, "-c", textwrap.dedent(code)],
         capture_output=True,
         text=True,
         timeout=600,
         env={**os.environ, **env},
+        cwd=cwd,
     )
 
 
@@ -60,6 +61,42 @@ def test_unwritable_numba_cache_falls_back_to_no_cache():
     assert out.stdout.strip() == "[False, True]"
     lines = [ln for ln in out.stderr.splitlines() if ln.startswith("prismbatch: Numba cannot write its cache")]
     assert len(lines) == 1, out.stderr
+
+
+@pytest.mark.slow
+def test_a_cached_kernel_recompiles_when_a_kernel_it_calls_changes(tmp_path):
+    # Numba alone would load gjk3d.closest from its cache with the old vec3.dot compiled in: its own
+    # file, bytecode and time stamp are unchanged (as after a git pull into an editable install).
+    import shutil
+    from pathlib import Path
+
+    pkg = tmp_path / "src"
+    shutil.copytree(Path(__file__).resolve().parents[2] / "prismbatch", pkg / "prismbatch", copy_function=shutil.copy2)
+    call = f"""
+        import numpy as np
+        from prismbatch._kernels.gjk3d import closest
+        W = np.array([[1.0, 0.5, 2.0], [-1.0, 0.5, 2.0], [0.0, -1.0, 2.5]] + [[0.0] * 3] * 5)
+        m, vx, vy, vz, _, _ = closest(W, np.zeros((8, 3), np.int64), np.zeros(8), 3)
+        assert closest.py_func.__code__.co_filename.startswith({str(pkg)!r})
+        print(m, vx.hex(), vy.hex(), vz.hex(), sum(closest.stats.cache_hits.values()))
+    """
+    env = {"NUMBA_CACHE_DIR": str(tmp_path / "cache"), "PYTHONPATH": str(pkg)}
+
+    def run():
+        out = _run(call, cwd=tmp_path, **env)  # not the checkout's folder, whose package -c would import
+        assert out.returncode == 0, out.stderr
+        *point, hits = out.stdout.split()
+        return point, int(hits)
+
+    first, hits = run()
+    assert hits == 0
+    assert run() == (first, 1)  # the second process loads it from the cache
+    vec3 = pkg / "prismbatch" / "_kernels" / "vec3.py"
+    src = vec3.read_text()
+    assert src.count("return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]") == 1
+    vec3.write_text(src.replace("return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]", "return a[0] * b[0] + a[1] * b[1]"))
+    changed, hits = run()
+    assert hits == 0 and changed != first  # compiled anew, with the new dot
 
 
 def test_a_slow_first_call_prints_one_compile_notice(capsys, monkeypatch):
