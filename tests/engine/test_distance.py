@@ -170,6 +170,17 @@ SLIVER_PAIR = (
 )
 
 
+def test_the_sliver_pair_without_its_reference():
+    """The sliver pair on the fast path: a gap with a finite normal and both witnesses on their bodies
+    (GJK falls back on its last simplex there; taking the sliver gave a distance of 0 and a NaN normal)."""
+    a, b = pb.Prism.regular(3600, 2.0), pb.Prism.regular(3600, 2.5)
+    pa, R, pb_ = (np.vectorize(float.fromhex)(np.array(x)) for x in SLIVER_PAIR)
+    A, B = Body(a.xy, pa, R), Body(b.xy, pb_, R)
+    for r in (distance(a, b, pa, R, pb_, R, witness=True), pb.Collider(a, b).distance(pa, R, pb_, R, witness=True)):
+        assert r.status[0] == SEPARATED and r.distance[0] > 4.9 and np.isfinite(r.normal).all()
+        assert max(abs(residual(A, r.point_a)[0]), abs(residual(B, r.point_b)[0])) <= r.tol[0]
+
+
 @pytest.mark.slow
 def test_identical_rotations_of_3600_gons():
     """The sliver pair against the reference, then 20,000 identical-rotation pairs of 3600-gons (a
