@@ -170,15 +170,59 @@ SLIVER_PAIR = (
 )
 
 
-def test_the_sliver_pair_without_its_reference():
-    """The sliver pair on the fast path: a gap with a finite normal and both witnesses on their bodies
-    (GJK falls back on its last simplex there; taking the sliver gave a distance of 0 and a NaN normal)."""
+def _hex_pose(pa, R, pb_):
+    """(pos_a, R, pos_b) from comma-separated hex floats (R row by row)."""
+    pa, R, pb_ = (np.array([float.fromhex(x) for x in v.split(",")]) for v in (pa, R, pb_))
+    return pa, R.reshape(3, 3), pb_
+
+
+#: More identical rotations of 3600-gons where GJK's fallbacks matter, found by mutation testing: with
+#: the sliver fallback dropped, a gap of 4.054 came out as 0 (GAP_SLIVER); with the lost-ground fallback
+#: dropped, the witnesses of a depth left their bodies by 436 and 469 tol (LOST_GROUND); with EPA not
+#: keeping its best set-aside face, a depth came out 476 tol too deep (SET_ASIDE).
+GAP_SLIVER = _hex_pose(
+    "0x1.f7f060df3612cp+0, 0x1.3ff234377b2bcp+2, 0x1.f354659960140p-1",
+    "-0x1.a5a0399ca53f0p-4, -0x1.b531aa6b44ed5p-1, 0x1.05345772f089bp-1, 0x1.dd06c4527fc99p-1, "
+    "-0x1.0cb0c7b038370p-2, -0x1.0139825f70f72p-2, 0x1.64b81f0964906p-2, 0x1.cc3f2567bcc44p-2, 0x1.a528c3982f49ep-1",
+    "-0x1.38c98a2d2acc3p+1, -0x1.ea1a60ccdfd20p+0, 0x1.0e8abb4e6a1dap+2",
+)
+LOST_GROUND = _hex_pose(
+    "0x1.ca2c829897638p+1, -0x1.0edaa7df037e6p+1, -0x1.0294310ea28ebp+2",
+    "-0x1.60485b12612b0p-2, -0x1.d96e95346dc66p-1, 0x1.4e32065deac86p-3, 0x1.239dd47fb2a86p-1, "
+    "-0x1.5feba16f7b5b8p-2, -0x1.7e48f468be1ccp-1, 0x1.7e3399f500600p-1, -0x1.4fb7e8eabe932p-3, 0x1.4a2f396201d0dp-1",
+    "0x1.28d4a331e6800p-1, -0x1.1e0c39d39507ap+2, -0x1.ecd43bcac9987p+1",
+)
+SET_ASIDE = _hex_pose(
+    "0x1.cc0596e216c4cp+1, -0x1.9b9d1418b2188p-1, 0x1.125df2f243c12p+2",
+    "-0x1.d67a4cf5f2118p-1, 0x1.18c1b2ba20b88p-5, 0x1.926d358dbdc2cp-2, 0x1.15a0b8a8f8074p-2, "
+    "-0x1.566ac42c6d0aap-1, 0x1.626fc0decceaep-1, 0x1.256e441cf59c4p-2, 0x1.7c3eda23d23f8p-1, 0x1.35e3e595fd439p-1",
+    "-0x1.51064f036e85ep+1, -0x1.5bb1e758736eep+1, 0x1.3ad0e3fa658e8p+0",
+)
+
+
+@pytest.mark.parametrize(
+    "pose, expected",
+    [
+        pytest.param(tuple(np.vectorize(float.fromhex)(np.array(x)) for x in SLIVER_PAIR), SEPARATED, id="sliver"),
+        pytest.param(GAP_SLIVER, SEPARATED, id="gap sliver"),
+        pytest.param(LOST_GROUND, PENETRATING, id="lost ground"),
+        pytest.param(SET_ASIDE, PENETRATING, id="set-aside face"),
+    ],
+)
+def test_recorded_identical_rotations_of_3600_gons(pose, expected):
+    """Recorded pairs on the fast path (batch and one-pair path): the status, a finite normal, both witnesses
+    on their bodies and apart by distance times the normal; a depth against the separating-axis reference
+    within 10 tol (a gap's reference takes 30 s: the slow test below)."""
     a, b = pb.Prism.regular(3600, 2.0), pb.Prism.regular(3600, 2.5)
-    pa, R, pb_ = (np.vectorize(float.fromhex)(np.array(x)) for x in SLIVER_PAIR)
+    pa, R, pb_ = pose
     A, B = Body(a.xy, pa, R), Body(b.xy, pb_, R)
+    sep = sat_separation(A, B)[0] if expected == PENETRATING else None
     for r in (distance(a, b, pa, R, pb_, R, witness=True), pb.Collider(a, b).distance(pa, R, pb_, R, witness=True)):
-        assert r.status[0] == SEPARATED and r.distance[0] > 4.9 and np.isfinite(r.normal).all()
-        assert max(abs(residual(A, r.point_a)[0]), abs(residual(B, r.point_b)[0])) <= r.tol[0]
+        tol = r.tol[0]
+        assert r.status[0] == expected and np.isfinite(r.normal).all()
+        assert max(abs(residual(A, r.point_a)[0]), abs(residual(B, r.point_b)[0])) <= tol
+        np.testing.assert_allclose(r.point_b - r.point_a, r.distance[:, None] * r.normal, rtol=0, atol=tol)
+        assert sep is None or abs(r.distance[0] - sep) <= 10 * tol, (r.distance[0], sep)
 
 
 @pytest.mark.slow
