@@ -26,6 +26,11 @@ LARGE_COUNTS = (360, 1000, 3600)
 # ---------------------------------------------------------------------------
 
 
+def from_hex(x):
+    """A float array of hex-float strings (``float.hex``), nested as ``x`` is: recorded inputs, exact to the bit."""
+    return np.vectorize(float.fromhex, otypes=[float])(np.array(x))
+
+
 def sliver_far_from_origin():
     """A counter-clockwise 4-vertex sliver about 1.5e5 from its local origin whose plain float
     shoelace sum of the raw coordinates rounds negative (found by an adversarial review)."""
@@ -35,7 +40,7 @@ def sliver_far_from_origin():
         ["-0x1.c1b1ced7fb6d3p+16", "-0x1.2ca8c54e2f3b2p+17"],
         ["-0x1.c1b2cb0f43503p+16", "-0x1.2ca8cee674012p+17"],
     ]
-    return np.array([[float.fromhex(v) for v in row] for row in rows])
+    return from_hex(rows)
 
 
 def _ccw(xy):

@@ -42,6 +42,7 @@ from helpers import (
     bisect_to_contact,
     count_pairs_sent,
     family_polygon,
+    from_hex,
     make_pairs,
     overlapping_pairs,
     pairs_from_rows,
@@ -170,40 +171,43 @@ SLIVER_PAIR = (
 )
 
 
-def _hex_pose(pa, R, pb_):
-    """(pos_a, R, pos_b) from comma-separated hex floats (R row by row)."""
-    pa, R, pb_ = (np.array([float.fromhex(x) for x in v.split(",")]) for v in (pa, R, pb_))
-    return pa, R.reshape(3, 3), pb_
-
-
 #: More identical rotations of 3600-gons where GJK's fallbacks matter, found by mutation testing: with
 #: the sliver fallback dropped, a gap of 4.054 came out as 0 (GAP_SLIVER); with the lost-ground fallback
 #: dropped, the witnesses of a depth left their bodies by 436 and 469 tol (LOST_GROUND); with EPA not
 #: keeping its best set-aside face, a depth came out 476 tol too deep (SET_ASIDE).
-GAP_SLIVER = _hex_pose(
-    "0x1.f7f060df3612cp+0, 0x1.3ff234377b2bcp+2, 0x1.f354659960140p-1",
-    "-0x1.a5a0399ca53f0p-4, -0x1.b531aa6b44ed5p-1, 0x1.05345772f089bp-1, 0x1.dd06c4527fc99p-1, "
-    "-0x1.0cb0c7b038370p-2, -0x1.0139825f70f72p-2, 0x1.64b81f0964906p-2, 0x1.cc3f2567bcc44p-2, 0x1.a528c3982f49ep-1",
-    "-0x1.38c98a2d2acc3p+1, -0x1.ea1a60ccdfd20p+0, 0x1.0e8abb4e6a1dap+2",
+GAP_SLIVER = (
+    ("0x1.f7f060df3612cp+0", "0x1.3ff234377b2bcp+2", "0x1.f354659960140p-1"),
+    (
+        ("-0x1.a5a0399ca53f0p-4", "-0x1.b531aa6b44ed5p-1", "0x1.05345772f089bp-1"),
+        ("0x1.dd06c4527fc99p-1", "-0x1.0cb0c7b038370p-2", "-0x1.0139825f70f72p-2"),
+        ("0x1.64b81f0964906p-2", "0x1.cc3f2567bcc44p-2", "0x1.a528c3982f49ep-1"),
+    ),
+    ("-0x1.38c98a2d2acc3p+1", "-0x1.ea1a60ccdfd20p+0", "0x1.0e8abb4e6a1dap+2"),
 )
-LOST_GROUND = _hex_pose(
-    "0x1.ca2c829897638p+1, -0x1.0edaa7df037e6p+1, -0x1.0294310ea28ebp+2",
-    "-0x1.60485b12612b0p-2, -0x1.d96e95346dc66p-1, 0x1.4e32065deac86p-3, 0x1.239dd47fb2a86p-1, "
-    "-0x1.5feba16f7b5b8p-2, -0x1.7e48f468be1ccp-1, 0x1.7e3399f500600p-1, -0x1.4fb7e8eabe932p-3, 0x1.4a2f396201d0dp-1",
-    "0x1.28d4a331e6800p-1, -0x1.1e0c39d39507ap+2, -0x1.ecd43bcac9987p+1",
+LOST_GROUND = (
+    ("0x1.ca2c829897638p+1", "-0x1.0edaa7df037e6p+1", "-0x1.0294310ea28ebp+2"),
+    (
+        ("-0x1.60485b12612b0p-2", "-0x1.d96e95346dc66p-1", "0x1.4e32065deac86p-3"),
+        ("0x1.239dd47fb2a86p-1", "-0x1.5feba16f7b5b8p-2", "-0x1.7e48f468be1ccp-1"),
+        ("0x1.7e3399f500600p-1", "-0x1.4fb7e8eabe932p-3", "0x1.4a2f396201d0dp-1"),
+    ),
+    ("0x1.28d4a331e6800p-1", "-0x1.1e0c39d39507ap+2", "-0x1.ecd43bcac9987p+1"),
 )
-SET_ASIDE = _hex_pose(
-    "0x1.cc0596e216c4cp+1, -0x1.9b9d1418b2188p-1, 0x1.125df2f243c12p+2",
-    "-0x1.d67a4cf5f2118p-1, 0x1.18c1b2ba20b88p-5, 0x1.926d358dbdc2cp-2, 0x1.15a0b8a8f8074p-2, "
-    "-0x1.566ac42c6d0aap-1, 0x1.626fc0decceaep-1, 0x1.256e441cf59c4p-2, 0x1.7c3eda23d23f8p-1, 0x1.35e3e595fd439p-1",
-    "-0x1.51064f036e85ep+1, -0x1.5bb1e758736eep+1, 0x1.3ad0e3fa658e8p+0",
+SET_ASIDE = (
+    ("0x1.cc0596e216c4cp+1", "-0x1.9b9d1418b2188p-1", "0x1.125df2f243c12p+2"),
+    (
+        ("-0x1.d67a4cf5f2118p-1", "0x1.18c1b2ba20b88p-5", "0x1.926d358dbdc2cp-2"),
+        ("0x1.15a0b8a8f8074p-2", "-0x1.566ac42c6d0aap-1", "0x1.626fc0decceaep-1"),
+        ("0x1.256e441cf59c4p-2", "0x1.7c3eda23d23f8p-1", "0x1.35e3e595fd439p-1"),
+    ),
+    ("-0x1.51064f036e85ep+1", "-0x1.5bb1e758736eep+1", "0x1.3ad0e3fa658e8p+0"),
 )
 
 
 @pytest.mark.parametrize(
     "pose, expected",
     [
-        pytest.param(tuple(np.vectorize(float.fromhex)(np.array(x)) for x in SLIVER_PAIR), SEPARATED, id="sliver"),
+        pytest.param(SLIVER_PAIR, SEPARATED, id="sliver"),
         pytest.param(GAP_SLIVER, SEPARATED, id="gap sliver"),
         pytest.param(LOST_GROUND, PENETRATING, id="lost ground"),
         pytest.param(SET_ASIDE, PENETRATING, id="set-aside face"),
@@ -214,7 +218,7 @@ def test_recorded_identical_rotations_of_3600_gons(pose, expected):
     on their bodies and apart by distance times the normal; a depth against the separating-axis reference
     within 10 tol (a gap's reference takes 30 s: the slow test below)."""
     a, b = pb.Prism.regular(3600, 2.0), pb.Prism.regular(3600, 2.5)
-    pa, R, pb_ = pose
+    pa, R, pb_ = (from_hex(x) for x in pose)
     A, B = Body(a.xy, pa, R), Body(b.xy, pb_, R)
     sep = sat_separation(A, B)[0] if expected == PENETRATING else None
     for r in (distance(a, b, pa, R, pb_, R, witness=True), pb.Collider(a, b).distance(pa, R, pb_, R, witness=True)):
@@ -230,7 +234,7 @@ def test_identical_rotations_of_3600_gons():
     """The sliver pair against the reference, then 20,000 identical-rotation pairs of 3600-gons (a
     handful of which took the sliver before the fix) against the 360-gons' distances."""
     a, b = pb.Prism.regular(3600, 2.0), pb.Prism.regular(3600, 2.5)
-    pa, R, pb_ = (np.vectorize(float.fromhex)(np.array(x)) for x in SLIVER_PAIR)
+    pa, R, pb_ = (from_hex(x) for x in SLIVER_PAIR)
     A, B = Body(a.xy, pa, R), Body(b.xy, pb_, R)
     sep, _ = sat_separation(A, B)  # a lower bound of the gap (4.947; the feature-pair gap takes 30 s here)
     r = distance(a, b, pa, R, pb_, R, witness=True)
@@ -406,7 +410,7 @@ def test_recorded_3600_gon_depths_where_epa_stopped(pair, solver):
     separating-axis reference within 10 tol, the witnesses on their bodies and apart by distance times the
     normal."""
     a, b = pb.Prism.regular(3600, 2.0), pb.Prism.regular(3600, 2.5)
-    pa, Ra, pb_, Rb = (np.array([float.fromhex(x) for x in v]) for v in pair)
+    pa, Ra, pb_, Rb = (from_hex(v) for v in pair)
     Ra, Rb = Ra.reshape(3, 3), Rb.reshape(3, 3)
     assert (((Rb[:, 2] - Ra[:, 2]) ** 2).sum() > SAT_FIRST) == (solver == EPA_DEPTH) and Ra[:, 2] @ Rb[:, 2] > 0
     A, B = Body(a.xy, pa, Ra), Body(b.xy, pb_, Rb)
@@ -668,8 +672,8 @@ def test_float32_witnesses_on_their_bodies(monkeypatch, k):
     from pathlib import Path
 
     case = json.loads((Path(__file__).resolve().parents[1] / "data" / "float32_witness.json").read_text())["pairs"][k]
-    A, B = (np.array([[float.fromhex(x) for x in v] for v in case[key]]) for key in ("A", "B"))
-    pa, Ra, pb_, Rb = (np.array([float.fromhex(x) for x in case[key]]) for key in ("pa", "Ra", "pb", "Rb"))
+    A, B = (from_hex(case[key]) for key in ("A", "B"))
+    pa, Ra, pb_, Rb = (from_hex(case[key]) for key in ("pa", "Ra", "pb", "Rb"))
     Ra, Rb = Ra.reshape(3, 3), Rb.reshape(3, 3)
     if case["room"] == "cut":
         monkeypatch.setattr(importlib.import_module("prismbatch.distance"), "EPA_ROOM", (6,))
@@ -688,10 +692,7 @@ def _recorded(name):
     from pathlib import Path
 
     doc = json.loads((Path(__file__).resolve().parents[1] / "data" / f"{name}.json").read_text())
-    return [
-        {k: np.array([float.fromhex(x) for x in v]).reshape((3, 3) if k[0] == "R" else -1) for k, v in case.items()}
-        for case in doc["pairs"]
-    ]
+    return [{k: from_hex(v).reshape((3, 3) if k[0] == "R" else -1) for k, v in case.items()} for case in doc["pairs"]]
 
 
 def test_witnesses_where_the_foot_point_lies_inside_a_tetrahedron():

@@ -14,6 +14,7 @@ import prismbatch as pb
 from prismbatch._kernels.planar import extreme_vertex
 from prismbatch.geometry import pair_scale_tolerance
 
+from helpers import from_hex
 from reference import margin_lp, point_in_prism_residual
 
 DATA = Path(__file__).resolve().parents[1] / "data"
@@ -215,8 +216,7 @@ def test_empty_batch():
 # (polygons, poses, the plane's normal n, a note each) are in data/far_hits.json.
 def _far_hits():
     doc = json.loads((DATA / "far_hits.json").read_text())
-    exact = np.vectorize(float.fromhex, otypes=[float])
-    return [{k: exact(np.array(v)) for k, v in case.items() if k != "note"} for case in doc["cases"]]
+    return [{k: from_hex(v) for k, v in case.items() if k != "note"} for case in doc["cases"]]
 
 
 def _certified_gap(d):
@@ -255,16 +255,14 @@ def test_no_hit_beyond_the_tolerance_bound(case):
 
 def _tiny_far_pairs():
     doc = json.loads((DATA / "tiny_far_gap_below_tol.json").read_text())
-    f = lambda v: np.array([float.fromhex(x) for x in v])  # noqa: E731
     for rec in doc["pairs"]:
-        xy = lambda k: np.array([[float.fromhex(x) for x in p] for p in rec[k]])  # noqa: E731
         yield (
-            xy("xy_a"),
-            f(rec["pos_a"]),
-            f(rec["rot_a"]).reshape(3, 3),
-            xy("xy_b"),
-            f(rec["pos_b"]),
-            f(rec["rot_b"]).reshape(3, 3),
+            from_hex(rec["xy_a"]),
+            from_hex(rec["pos_a"]),
+            from_hex(rec["rot_a"]).reshape(3, 3),
+            from_hex(rec["xy_b"]),
+            from_hex(rec["pos_b"]),
+            from_hex(rec["rot_b"]).reshape(3, 3),
             float.fromhex(rec["tol"]),
             rec["exact"],
         )
@@ -292,11 +290,10 @@ def test_end_faces_far_from_their_local_origin():
     from prismbatch.lab.exact_gap import check_contact, judge_pair
 
     doc = json.loads((DATA / "far_local_origin.json").read_text())
-    f = lambda v: np.array([float.fromhex(x) for x in v])  # noqa: E731
     for rec in doc["pairs"]:
-        xa, xb = (np.array([f(p) for p in rec[k]]) for k in ("xy_a", "xy_b"))
-        pa, pb_ = f(rec["pos_a"]), f(rec["pos_b"])
-        ra, rb = f(rec["rot_a"]).reshape(3, 3), f(rec["rot_b"]).reshape(3, 3)
+        xa, xb = (from_hex(rec[k]) for k in ("xy_a", "xy_b"))
+        pa, pb_ = from_hex(rec["pos_a"]), from_hex(rec["pos_b"])
+        ra, rb = from_hex(rec["rot_a"]).reshape(3, 3), from_hex(rec["rot_b"]).reshape(3, 3)
         A, B = pb.Prism(xa), pb.Prism(xb)
         tol = pair_scale_tolerance(A, B, pa[None], ra[None], pb_[None], rb[None])[1][0]
         assert tol > float.fromhex(rec["tol_before"])

@@ -13,7 +13,7 @@ from prismbatch.geometry import pair_scale_tolerance
 from prismbatch.motion import CLEAR, CONTACT, UNDECIDED, time_of_impact
 from prismbatch.sampling import free_poses
 
-from helpers import count_pairs_sent
+from helpers import count_pairs_sent, from_hex
 from reference import rodrigues
 
 DOWN = np.diag([1.0, -1.0, -1.0])  # a's axis points down: a's body is z <= 0 below its end face at z = 0
@@ -455,7 +455,7 @@ def test_extreme_magnitudes_against_closed_forms(size, far):
 
 
 def hexes(*xs):
-    return np.array([float.fromhex(x) for x in xs])
+    return from_hex(xs)
 
 
 def test_thin_body_tumbling_fast_needs_the_turn_of_its_face():
