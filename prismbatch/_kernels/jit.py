@@ -7,6 +7,7 @@ pairs is written once and compiled as serial and parallel twins
 (:func:`twins`), as umap does. Nothing here changes Numba's global config.
 """
 
+import functools
 import hashlib
 import sys
 import threading
@@ -26,8 +27,10 @@ def cache_enabled():
     return _cache["ok"]
 
 
-def _kernel_sources_digest():
-    """A digest of every kernel module's source (this folder's ``*.py``)."""
+@functools.cache
+def kernel_sources():
+    """A digest of every kernel module's source (this folder's ``*.py``), part of every cached kernel's
+    key (:class:`_SourcesKeyedCache`); read once, at the first load from or save to the cache."""
     h = hashlib.sha256()
     for path in sorted(Path(__file__).resolve().parent.glob("*.py")):
         h.update(path.name.encode())
@@ -35,12 +38,8 @@ def _kernel_sources_digest():
     return h.hexdigest()[:16]
 
 
-#: Part of every cached kernel's key: see :class:`_SourcesKeyedCache`.
-KERNEL_SOURCES = _kernel_sources_digest()
-
-
 class _SourcesKeyedCache(FunctionCache):
-    """Numba's on-disk cache with :data:`KERNEL_SOURCES` in each entry's key.
+    """Numba's on-disk cache with :func:`kernel_sources` in each entry's key.
 
     Numba keys an entry by the function's own bytecode and its file's time stamp, not by the kernels
     it calls from other modules, which it compiles in: after a ``git pull`` into an editable install
@@ -49,7 +48,7 @@ class _SourcesKeyedCache(FunctionCache):
     """
 
     def _index_key(self, sig, codegen):
-        return (*super()._index_key(sig, codegen), KERNEL_SOURCES)
+        return (*super()._index_key(sig, codegen), kernel_sources())
 
 
 def _key_by_sources(dispatcher):
