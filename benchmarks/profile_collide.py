@@ -32,6 +32,12 @@ all its arguments (one array holding both prisms and the scalars, the four poses
 output array: each crosses Numba's dispatcher, which types and unboxes it); then the
 result tuple; then the whole method (its checks of the call's form).
 
+What a search costs grows with the polygon's size because its loads depend on each other: each
+step of a binary search reads the entry the last step chose. The last table times such a chain of
+dependent loads (a pointer chase over a random cycle) over working sets of the size of one polygon
+array (n entries of 8 bytes) and of all eight arrays the kernel searches in a pair (a's vertices,
+polar angles and inverse edge lengths, b's vertices, edge angles and bucket table), at each n.
+
 One thread, medians over repeats, all figures from one run:
 
     python benchmarks/profile_collide.py [--quick] [--out DIR]
@@ -76,6 +82,9 @@ from bench_floor import (  # noqa: E402  (the same floor, sets and options)
     seconds_per_call,
     trivial_call,
 )
+
+#: Polygon sizes (vertices): as ``bench_floor.py``'s rows.
+SIZES = (36, 3600, 100_000)
 
 STAGES = (
     "floor",
@@ -180,6 +189,29 @@ def gjk_iterations(n_vertices, n_pairs, rng):
     }
 
 
+@numba.njit(cache=True)
+def _chase(nxt, steps):
+    """Follow ``nxt`` ``steps`` times from 0: each load's address is the last load's value."""
+    i = 0
+    for _ in range(steps):
+        i = nxt[i]
+    return i
+
+
+def load_latency(n_vertices, repeats, rng, steps=1_000_000):
+    """ns per dependent load over one polygon array (8 n bytes) and over a pair's eight (64 n bytes)."""
+    row = {"vertices": n_vertices}
+    for key, nbytes in (("one", 8 * n_vertices), ("pair", 64 * n_vertices)):
+        n = max(nbytes // 8, 2)
+        perm = rng.permutation(n)
+        nxt = np.empty(n, np.int64)
+        nxt[perm] = np.roll(perm, 1)  # one cycle through every entry, in random order
+        times = timed_loops({key: lambda: _chase(nxt, steps)}, repeats)
+        row[key] = 1e9 * stats(times[key])["median"] / steps
+        row[key + "_bytes"] = nbytes
+    return row
+
+
 def latency_steps(repeats):
     """ns per call of each step of one ``collide_pair`` query (36-gons, one facing pair)."""
     a, b = pb.Prism.regular(36, RADIUS_A), pb.Prism.regular(36, RADIUS_B)
@@ -218,6 +250,13 @@ def markdown(res):
         lines.append(
             f"| {g['vertices']:,} | {g['pairs']} | {g['mean']:.2f} | {g['p50']:g} | {g['p95']:g} | {g['max']:g} |"
         )
+    lines += ["", "| vertices | dependent load over one polygon array (ns) | over a pair's eight arrays (ns) |",
+              "|---|---|---|"]  # fmt: skip
+    for m in res["memory"]:
+        lines.append(
+            f"| {m['vertices']:,} | {fmt(m['one'], '.3g')} ({m['one_bytes']:,} B) "
+            f"| {fmt(m['pair'], '.3g')} ({m['pair_bytes']:,} B) |"
+        )
     lines += ["", "| one query, step by step | ns per call |", "|---|---|"]
     lines += [f"| {k} | {fmt(v, '.0f')} |" for k, v in res["latency"].items()]
     return "\n".join(lines)
@@ -228,10 +267,11 @@ def main(argv=None):
     n_pairs = 20_000 if args.quick else 200_000
     rng = np.random.default_rng(args.seed)
     with threads(1):
-        stages = [r for nv in (36, 3600) for r in stage_rows(nv, n_pairs, repeats, rng)]
+        stages = [r for nv in SIZES for r in stage_rows(nv, n_pairs, repeats, rng)]
+        memory = [load_latency(nv, repeats, rng) for nv in SIZES]
         latency = latency_steps(repeats)
-    gjk = [gjk_iterations(nv, 50 if args.quick else 500, rng) for nv in (36, 3600)]
-    res = {"stages": stages, "gjk": gjk, "latency": latency, "pairs": n_pairs}
+    gjk = [gjk_iterations(nv, 50 if args.quick else 500, rng) for nv in SIZES]
+    res = {"stages": stages, "gjk": gjk, "memory": memory, "latency": latency, "pairs": n_pairs}
     report(markdown(res), res, "profile", args, repeats)
     return 0
 
