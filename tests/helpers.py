@@ -357,6 +357,14 @@ def make_pairs(rng, n_pairs, pose_set, family="mixed", *, regular=None, with_mar
     return d
 
 
+def distance_with_witnesses(d, pos_b=None, **kw):
+    """``prismbatch.distance`` with witnesses on PairData ``d`` (b moved to ``pos_b`` if given)."""
+    import prismbatch as pb
+
+    sa, sb = pb.PrismSet(d.polys_a), pb.PrismSet(d.polys_b)
+    return pb.distance(sa, sb, d.pos_a, d.rot_a, d.pos_b if pos_b is None else pos_b, d.rot_b, witness=True, **kw)
+
+
 def concat_pairs(*parts):
     cat = lambda name: np.concatenate([getattr(p, name) for p in parts])  # noqa: E731
     out = PairData(
