@@ -327,6 +327,25 @@ def test_tiny_and_huge_objects_far_from_the_origin(size, offset):
     np.testing.assert_allclose(r.distance, size * base.distance, rtol=0, atol=10 * r.tol.max())
 
 
+@pytest.mark.parametrize("shift", [1e2, 1e5, 1e8])
+def test_polygons_far_from_their_own_origin(shift):
+    """End faces given far from their prism's local origin (vertices about k, |k| = shift times the size),
+    the poses moved so that the bodies stay where they were: the contract against the reference, which
+    takes the floats as given, and the distances of the unshifted pairs to within the tolerance, which
+    grows with |k| (the polygons' own rounding at the size of k)."""
+    rng = np.random.default_rng(int(np.log10(shift)) + 60)
+    d = make_pairs(rng, 80, "free", "smallmed")
+    base = distance_with_witnesses(d)
+    k = shift * d.scale[:, None, None] * rng.uniform(-1, 1, (len(d), 2, 2))
+    d.polys_a = [p + k[i, 0] for i, p in enumerate(d.polys_a)]
+    d.polys_b = [p + k[i, 1] for i, p in enumerate(d.polys_b)]
+    d.pos_a = d.pos_a - np.einsum("nij,nj->ni", d.rot_a[:, :, :2], k[:, 0])
+    d.pos_b = d.pos_b - np.einsum("nij,nj->ni", d.rot_b[:, :, :2], k[:, 1])
+    r, _ = check(f"polygons shifted by {shift:g} of their size", d, coordinate_rounding=True)
+    assert (r.tol > base.tol).all()
+    np.testing.assert_allclose(r.distance, base.distance, rtol=0, atol=10 * r.tol.max())
+
+
 # ---------------------------------------------------------------------------
 # properties (hypothesis)
 # ---------------------------------------------------------------------------
