@@ -109,6 +109,18 @@ def test_random_poses_match_the_reference(pose_set, family):
     assert (r.solver <= 1).all()  # every pair converged (GJK gap or EPA depth)
 
 
+@pytest.mark.parametrize("family", ["skinny", pytest.param("collinear", marks=pytest.mark.slow)])
+@pytest.mark.parametrize("pose_set", ["facing", "free"])
+def test_skinny_and_collinear_polygons_match_the_reference(pose_set, family):
+    """Polygons squashed to an aspect ratio of 1e-5 to 0.1, and dense collinear ones (3- to 7-gons with up
+    to 59 more vertices on every edge: the reference takes about 10 s for 40 such pairs)."""
+    rng = np.random.default_rng({"facing": 5, "free": 6}[pose_set] * 10 + len(family))
+    d = make_pairs(rng, 80 if family == "skinny" else 40, pose_set, family)
+    r, ref = check(f"{pose_set}/{family}", d)
+    assert (ref < 0).any() and (ref > 0).any()
+    assert (r.solver <= 1).all()
+
+
 @pytest.mark.slow
 def test_large_polygons_match_the_reference():
     """A few hundred vertices on both sides, regular and irregular."""
