@@ -27,18 +27,12 @@ __all__ = ["Prism", "PrismSet", "validate_polygon"]
 _TWO_PI = 2.0 * np.pi
 # A turn between consecutive edges may be negative by this much (relative to
 # the product of the edge lengths) and still count as straight: nearly
-# collinear consecutive vertices are legal, dents are not.
+# collinear consecutive vertices are legal, dents are not. Not more: the
+# extreme-vertex search takes the edge angles as they are, so along a straight
+# side whose edge angles rounding scatters by t, a support point can land
+# anywhere on the side, off by up to t times its length (accepting turns up to
+# 1e-6 gave missed contacts 2.6 tol deep on sides sampled at 1e4 from the origin).
 _CONVEX_RTOL = 1e-12
-# A vertex may also lie off the line through its neighbours by the rounding of
-# its coordinates: vertices sampled along a straight side and rotated land up to
-# one unit in the last place of the polygon's largest coordinate off it (measured
-# on squares of 40 to 400,000 vertices, centred at 0 to 1e4, turned 0.3 to 2.2
-# rad), so up to _ROUNDING_ULPS such units count as straight too, while the
-# backward turn stays below _MAX_ROUNDING_TURN (sides of 55 million units long
-# turn by up to 4e-8 at that level). (The kernels' search tables take
-# a backward turn as none; a dent this shallow is far below any pair tolerance.)
-_ROUNDING_ULPS = 4.0
-_MAX_ROUNDING_TURN = 1e-6
 # Peak bytes a vertex costs from building a prism to a Collider's tables of it
 # (tracemalloc on a 10^6-gon: a peak of 163 B to build and check the polygon, of
 # 216 B to its PrismSet and one packed copy, 112 B kept; float32 packs a second copy).
@@ -169,14 +163,9 @@ def _check_polygons(arr):
     prev = _prev(ccw_edges)
     cross = prev[..., 0] * ccw_edges[..., 1] - prev[..., 1] * ccw_edges[..., 0]
     dot = prev[..., 0] * ccw_edges[..., 0] + prev[..., 1] * ccw_edges[..., 1]
-    elen2 = ccw_elen * _prev(ccw_elen)
-    rounding = _ROUNDING_ULPS * np.finfo(np.float64).eps * np.ldexp(_absmax(u), -scale)  # in the edges' units
-    allowed = np.maximum(
-        _CONVEX_RTOL * elen2, np.minimum(rounding[:, None] * (ccw_elen + _prev(ccw_elen)), _MAX_ROUNDING_TURN * elen2)
-    )
-    dent = cross < -allowed
+    dent = cross < -_CONVEX_RTOL * ccw_elen * _prev(ccw_elen)
     turns = np.arctan2(cross, dot)
-    total = np.sum(turns, axis=1)  # (signed: the backward turns left are rounding, and cancel)
+    total = np.sum(np.maximum(turns, 0.0), axis=1)
     fold = np.abs(turns) >= np.pi - 1e-12
     ok = ~(coincide | short.any(axis=1) | thin | dent.any(axis=1) | (np.abs(total - _TWO_PI) > 1e-6) | fold.any(axis=1))
     return _PolygonChecks(ok, ccw, coincide, elen, short, area2, thin, dent, total, fold)
@@ -203,7 +192,18 @@ def _raise_first_failure(c, i, arr, name):
             f"squared, below the supported {MIN_RELATIVE_AREA / 2:g}"
         )
     if c.dent[i].any():
-        raise ValueError(f"{name}: polygon is not convex at vertex {int(np.argmax(c.dent[i]))} (reflex turn)")
+        k = int(np.argmax(c.dent[i]))
+        v = c.ccw[i]
+        e1, e2 = v[k] - v[k - 1], v[(k + 1) % n] - v[k]
+        turn = np.arctan2(e1[0] * e2[1] - e1[1] * e2[0], e1[0] * e2[0] + e1[1] * e2[1])
+        hint = (
+            ": a turn this small is the rounding of vertices on a straight side (a side sampled densely, far "
+            "from the polygon's own origin, turns its short edges back and forth by that much); drop the "
+            "vertices inside straight sides"
+            if turn > -1e-6
+            else ""
+        )
+        raise ValueError(f"{name}: polygon is not convex at vertex {k} (reflex turn of {-turn:.2g} rad){hint}")
     if abs(c.total[i] - _TWO_PI) > 1e-6:
         raise ValueError(
             f"{name}: polygon outline is self-intersecting (it turns {c.total[i] / _TWO_PI:.3f} times, not once)"
