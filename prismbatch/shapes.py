@@ -33,6 +33,10 @@ _TWO_PI = 2.0 * np.pi
 # anywhere on the side, off by up to t times its length (accepting turns up to
 # 1e-6 gave missed contacts 2.6 tol deep on sides sampled at 1e4 from the origin).
 _CONVEX_RTOL = 1e-12
+# For the same reason the outline may not turn back by more than this in all
+# (radians) over a run of vertices, each within _CONVEX_RTOL: 100,000 such steps
+# would make a side concave by 9e-8 rad, its middle 1e-8 of its length inside.
+_MAX_BACKTRACK = 4e-12
 # Peak bytes a vertex costs from building a prism to a Collider's tables of it
 # (tracemalloc on a 10^6-gon: a peak of 163 B to build and check the polygon, of
 # 216 B to its PrismSet and one packed copy, 112 B kept; float32 packs a second copy).
@@ -128,6 +132,7 @@ class _PolygonChecks(NamedTuple):
     area2: np.ndarray  # (m,) unit-scaled twice signed area
     thin: np.ndarray  # (m,) area below MIN_RELATIVE_AREA
     dent: np.ndarray  # (m, n) reflex turn at the (counter-clockwise) vertex
+    backtrack: tuple  # ((m,), (m,)) the most the outline turns back over a run of vertices, and where
     total: np.ndarray  # (m,) total left turn, radians
     fold: np.ndarray  # (m, n) the outline folds back at the vertex
 
@@ -165,10 +170,29 @@ def _check_polygons(arr):
     dot = prev[..., 0] * ccw_edges[..., 0] + prev[..., 1] * ccw_edges[..., 1]
     dent = cross < -_CONVEX_RTOL * ccw_elen * _prev(ccw_elen)
     turns = np.arctan2(cross, dot)
+    backtrack = _backtrack(ccw_edges, turns)
     total = np.sum(np.maximum(turns, 0.0), axis=1)
     fold = np.abs(turns) >= np.pi - 1e-12
-    ok = ~(coincide | short.any(axis=1) | thin | dent.any(axis=1) | (np.abs(total - _TWO_PI) > 1e-6) | fold.any(axis=1))
-    return _PolygonChecks(ok, ccw, coincide, elen, short, area2, thin, dent, total, fold)
+    bad = coincide | short.any(axis=1) | thin | dent.any(axis=1) | (backtrack[0] > _MAX_BACKTRACK)
+    ok = ~(bad | (np.abs(total - _TWO_PI) > 1e-6) | fold.any(axis=1))
+    return _PolygonChecks(ok, ccw, coincide, elen, short, area2, thin, dent, backtrack, total, fold)
+
+
+def _backtrack(edges, turns):
+    """``(fall, vertex)`` per polygon: the most the edge direction falls back below the largest it had
+    reached (radians, over a run of vertices) and the vertex where it does. From each edge's own angle,
+    unwrapped by whole turns (a running sum of the turns would round by n eps), taken from the vertex
+    of the largest turn, so that no run of backward turns straddles the start."""
+    m, n = turns.shape
+    order = (np.argmax(turns, axis=1)[:, None] + np.arange(n)) % n  # edge k runs from vertex k to k + 1
+    e = np.take_along_axis(edges, order[..., None], axis=1)
+    theta = np.arctan2(e[..., 1], e[..., 0])
+    wraps = -np.round(np.diff(theta, axis=1) / _TWO_PI)
+    unwrapped = theta + _TWO_PI * np.concatenate((np.zeros((m, 1)), np.cumsum(wraps, axis=1)), axis=1)
+    fall = np.maximum.accumulate(unwrapped, axis=1) - unwrapped
+    k = np.argmax(fall, axis=1)
+    rows = np.arange(m)
+    return fall[rows, k], order[rows, k]
 
 
 def _raise_first_failure(c, i, arr, name):
@@ -195,6 +219,7 @@ def _raise_first_failure(c, i, arr, name):
         k = int(np.argmax(c.dent[i]))
         v = c.ccw[i]
         e1, e2 = v[k] - v[k - 1], v[(k + 1) % n] - v[k]
+        e1, e2 = e1 / np.abs(e1).max(), e2 / np.abs(e2).max()  # (directions only: no overflow at 1e200)
         turn = np.arctan2(e1[0] * e2[1] - e1[1] * e2[0], e1[0] * e2[0] + e1[1] * e2[1])
         hint = (
             ": a turn this small is the rounding of vertices on a straight side (a side sampled densely, far "
@@ -204,6 +229,12 @@ def _raise_first_failure(c, i, arr, name):
             else ""
         )
         raise ValueError(f"{name}: polygon is not convex at vertex {k} (reflex turn of {-turn:.2g} rad){hint}")
+    fall, k = c.backtrack[0][i], int(c.backtrack[1][i])
+    if fall > _MAX_BACKTRACK:
+        raise ValueError(
+            f"{name}: polygon is not convex: its outline turns back by {fall:.2g} rad in all up to vertex {k}, "
+            f"over vertices that each turn back by less than {_CONVEX_RTOL:g} (a side bent inwards)"
+        )
     if abs(c.total[i] - _TWO_PI) > 1e-6:
         raise ValueError(
             f"{name}: polygon outline is self-intersecting (it turns {c.total[i] / _TWO_PI:.3f} times, not once)"

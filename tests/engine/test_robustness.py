@@ -215,6 +215,29 @@ def test_sides_sampled_then_turned_are_refused_with_the_remedy(per_side, corner)
     assert pb.Prism(_sampled_square(per_side, corner, 0.0)).n_vertices == 4 * per_side  # exactly straight sides
 
 
+def _square_bent_inwards(m, tau):
+    """A unit square whose bottom side is m edges, each turning back by tau rad from the last (a side bent
+    inwards by m tau in all, each step below the per-vertex limit of 1e-12)."""
+    ang = m * tau / 2 - tau * np.arange(m)
+    e = np.stack([np.cos(ang), np.sin(ang)], axis=1) / np.cos(ang).sum()
+    side = np.concatenate([[[0.0, 0.0]], np.cumsum(e, axis=0)])
+    return np.concatenate([side, side[-1] + [[0.0, 1.0]], [[0.0, 1.0]]])
+
+
+@pytest.mark.parametrize("m, tau", [(100_000, 9e-13), (10_000, 5e-13), (10, 9e-13)])
+def test_a_side_bent_inwards_in_steps_below_the_limit_is_refused(m, tau):
+    """Each backward turn passes the per-vertex test, their sum may not (above 4e-12 rad): a bend of 9e-8
+    rad leaves the side's middle 1.1e-8 inside (the tolerance of a pair of size 2 is 2e-9), which the
+    kernels' search, taking the polygon as convex, would not see. 3 steps of 9e-13 (1.8e-12 from the
+    first edge's direction) are rounding: kept."""
+    xy = _square_bent_inwards(m, tau)
+    with pytest.raises(ValueError, match=f"turns back by {(m - 1) * tau:.2g} rad in all"):
+        pb.Prism(xy)
+    with pytest.raises(ValueError, match="polygon 1: .*turns back"):
+        pb.PrismSet([[[0, 0], [1, 0], [1, 1], [0, 1]], xy])
+    assert pb.Prism(_square_bent_inwards(3, tau)).n_vertices == 6
+
+
 def test_read_only_inputs_are_accepted_everywhere():
     a, b = pb.Prism.regular(5, 2.0), pb.Prism.regular(6, 2.5)
     pos = np.array([0.3, 0.1, 0.0])
