@@ -228,9 +228,9 @@ def _raise_first_failure(c, i, arr, name):
         e1, e2 = e1 / np.abs(e1).max(), e2 / np.abs(e2).max()  # (directions only: no overflow at 1e200)
         turn = np.arctan2(e1[0] * e2[1] - e1[1] * e2[0], e1[0] * e2[0] + e1[1] * e2[1])
         hint = (
-            ": a turn this small is the rounding of vertices on a straight side (a side sampled densely, far "
-            "from the polygon's own origin, turns its short edges back and forth by that much); drop the "
-            "vertices inside straight sides"
+            ": a turn this small is the rounding of vertices dense for their distance from the polygon's own "
+            "origin (a straight side sampled densely, or a fine polygon given far away); drop the vertices "
+            "inside straight sides (they change nothing), or give fewer"
             if turn > -1e-6
             else ""
         )
