@@ -132,6 +132,7 @@ class _PolygonChecks(NamedTuple):
     area2: np.ndarray  # (m,) unit-scaled twice signed area
     thin: np.ndarray  # (m,) area below MIN_RELATIVE_AREA
     dent: np.ndarray  # (m, n) reflex turn at the (counter-clockwise) vertex
+    turns: np.ndarray  # (m, n) signed turn at the (counter-clockwise) vertex, radians
     backtrack: tuple  # ((m,), (m,)) the most the outline turns back over a run of vertices, and where
     total: np.ndarray  # (m,) total left turn, radians
     fold: np.ndarray  # (m, n) the outline folds back at the vertex
@@ -175,7 +176,7 @@ def _check_polygons(arr):
     fold = np.abs(turns) >= np.pi - 1e-12
     bad = coincide | short.any(axis=1) | thin | dent.any(axis=1) | (backtrack[0] > _MAX_BACKTRACK)
     ok = ~(bad | (np.abs(total - _TWO_PI) > 1e-6) | fold.any(axis=1))
-    return _PolygonChecks(ok, ccw, coincide, elen, short, area2, thin, dent, backtrack, total, fold)
+    return _PolygonChecks(ok, ccw, coincide, elen, short, area2, thin, dent, turns, backtrack, total, fold)
 
 
 def _backtrack(edges, turns):
@@ -223,10 +224,7 @@ def _raise_first_failure(c, i, arr, name):
         )
     if c.dent[i].any():
         k = int(np.argmax(c.dent[i]))
-        v = c.ccw[i]
-        e1, e2 = v[k] - v[k - 1], v[(k + 1) % n] - v[k]
-        e1, e2 = e1 / np.abs(e1).max(), e2 / np.abs(e2).max()  # (directions only: no overflow at 1e200)
-        turn = np.arctan2(e1[0] * e2[1] - e1[1] * e2[0], e1[0] * e2[0] + e1[1] * e2[1])
+        turn = c.turns[i, k]
         hint = (
             ": a turn this small is the rounding of vertices dense for their distance from the polygon's own "
             "origin (a straight side sampled densely, or a fine polygon given far away); drop the vertices "

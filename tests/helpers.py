@@ -130,14 +130,18 @@ def sample_vertex_count(rng, family):
     raise ValueError(family)
 
 
+def subdivided(base, k):
+    """``base``'s vertices with k - 1 more on every edge (np.linspace, as a tessellation writes them):
+    collinear up to the rounding of their coordinates."""
+    t = np.linspace(0.0, 1.0, k, endpoint=False)[:, None]
+    return np.concatenate([a + t * (b - a) for a, b in zip(base, np.roll(base, -1, axis=0))])
+
+
 def collinear_polygon(rng, *, radius=None):
     """Irregular/regular 3..7-gon with 1..59 extra vertices on every edge
     (exactly collinear up to rounding: straight angles are legal input)."""
     base = random_polygon(rng, int(rng.integers(3, 8)), radius=radius)
-    k = int(rng.integers(2, 61))
-    t = np.linspace(0.0, 1.0, k, endpoint=False)[:, None]
-    nxt = np.roll(base, -1, axis=0)
-    return np.concatenate([a + t * (b - a) for a, b in zip(base, nxt)])
+    return subdivided(base, int(rng.integers(2, 61)))
 
 
 def skinny_polygon(rng, *, radius=None):

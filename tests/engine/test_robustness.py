@@ -21,6 +21,8 @@ from scipy.spatial.transform import Rotation
 import prismbatch as pb
 from prismbatch.config import MAX_MAGNITUDE
 
+from helpers import subdivided
+
 DATA = Path(__file__).resolve().parents[1] / "data"
 SQUARE = pb.Prism([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
 
@@ -193,9 +195,7 @@ def test_valid_polygons_far_away_or_of_any_size_are_accepted():
 def _sampled_square(per_side, corner, angle):
     """A unit square with corner ``(corner, corner)``, ``per_side`` vertices on each side (np.linspace, as a
     tessellation writes them), turned by ``angle``: straight sides, up to the rounding of the coordinates."""
-    base = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float) + corner
-    t = np.linspace(0.0, 1.0, per_side, endpoint=False)[:, None]
-    xy = np.concatenate([p + t * (q - p) for p, q in zip(base, np.roll(base, -1, axis=0))])
+    xy = subdivided(np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float) + corner, per_side)
     c, s = np.cos(angle), np.sin(angle)
     return xy @ np.array([[c, -s], [s, c]]).T
 
