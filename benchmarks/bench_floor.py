@@ -18,7 +18,8 @@ is then bound by memory, not by arithmetic). Then the latency of one query
 (``collide_pair``, ``Collider.collide`` and ``pb.collide`` on one plain pair,
 against a trivial ``@njit`` call taking the same four arrays; ``Collider.collide`` on batches
 of 10 and 100 pairs and ``Collider.distance`` on 10, per call), two threads
-against one on 10^6 pairs, status only against contacts, float32 against
+against one on 10^6 pairs (and, as what the machine allows, two one-thread processes
+running at once against one alone), status only against contacts, float32 against
 float64, the cold compile of the serial and of the parallel path (each in a fresh process with an
 empty Numba cache), and the build of a ``PrismSet`` of 100,000 polygons.
 
@@ -171,6 +172,51 @@ def bulk_rows(n_pairs, repeats, rng):
     return out
 
 
+_ONE_THREAD_PROCESS = """
+import sys, time, numpy as np
+import prismbatch as pb
+from prismbatch.sampling import facing_poses
+n, repeats, seed, ra, rb = int(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3]), float(sys.argv[4]), float(sys.argv[5])
+col = pb.Collider(pb.Prism.regular(36, ra), pb.Prism.regular(36, rb))
+poses = tuple(np.ascontiguousarray(x) for x in facing_poses(n, np.random.default_rng(seed), radius=rb))
+col.collide(*poses, parallel=False)
+print("ready", flush=True)
+sys.stdin.readline()
+for _ in range(repeats):
+    t0 = time.perf_counter()
+    col.collide(*poses, parallel=False)
+    print(time.perf_counter() - t0, flush=True)
+"""
+
+
+def machine_ceiling(n_pairs, repeats, seed):
+    """What two cores give two independent one-thread jobs here: each job is a process of its own running
+    the serial kernel on the same ``n_pairs`` facing pairs, alone and then two at once (started together).
+    Returns the medians (ms per call) and ``2 * alone / together``: the speed-up that a perfectly split
+    two-thread call could reach on this machine, to set the two-thread figure against."""
+
+    def run(k):
+        args = [sys.executable, "-c", _ONE_THREAD_PROCESS, str(n_pairs), str(repeats), str(seed)]
+        args += [str(RADIUS_A), str(RADIUS_B)]
+        env = dict(os.environ, NUMBA_NUM_THREADS="1")
+        procs = [
+            subprocess.Popen(args, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, env=env) for _ in range(k)
+        ]
+        for p in procs:  # every job warm before any is timed
+            if p.stdout.readline().strip() != "ready":
+                raise RuntimeError("a timing process failed to start")
+        for p in procs:
+            p.stdin.write("go\n")
+            p.stdin.flush()
+        times = [float(x) for p in procs for x in p.communicate()[0].split()]
+        if any(p.returncode for p in procs):
+            raise RuntimeError("a timing process failed")
+        return 1e3 * stats(times)["median"]
+
+    alone, together = run(1), run(2)
+    return {"one process alone": alone, "each of two processes at once": together, "ceiling": 2 * alone / together}
+
+
 _COLD = """
 import sys, time, numpy as np
 n = int(sys.argv[1])
@@ -246,6 +292,20 @@ def markdown(res):
     bulk = res["bulk_ms"]
     L += ["", f"| {res['bulk_pairs']} facing pairs, 36 vertices | ms per call |", "|---|---|"]
     L += [f"| {k} | {fmt(v)} |" for k, v in bulk.items()]
+    ceil = res["ceiling"]
+    two = [v for k, v in bulk.items() if k.endswith("2 threads")]
+    L += [
+        f"| the serial call, one process alone | {fmt(ceil['one process alone'])} |",
+        f"| the same, each of two processes at once | {fmt(ceil['each of two processes at once'])} |",
+        "",
+        f"Two threads: {fmt(bulk['status, float64, 1 thread'] / two[0], '.2f')}x one thread"
+        if two
+        else "Two threads: not measured (one core)",
+    ]
+    L[-1] += (
+        f"; two independent one-thread processes got {fmt(ceil['ceiling'], '.2f')}x the throughput of one "
+        "(what the machine gives two jobs that share nothing)."
+    )
     L.append("")
     for path, cc in res["compile"].items():
         L.append(
@@ -297,6 +357,8 @@ def main(argv=None):
     res["bulk_pairs"] = 100_000 if args.quick else 1_000_000
     print("bulk ...", file=sys.stderr)
     res["bulk_ms"] = bulk_rows(res["bulk_pairs"], rep, rng)
+    print("two processes ...", file=sys.stderr)
+    res["ceiling"] = machine_ceiling(res["bulk_pairs"], rep, args.seed)
     print("cold compile ...", file=sys.stderr)
     res["compile"] = cold_compile()
     res["prismset"] = prismset_build(10_000 if args.quick else 100_000, rng)

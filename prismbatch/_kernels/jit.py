@@ -152,8 +152,8 @@ def _compile_notice():
         return
     _notice["shown"] = True
     print(
-        "prismbatch: compiling the collision kernels for this process's first call (up to some 10 s once; "
-        "later runs load them from Numba's cache)",
+        "prismbatch: compiling the collision kernels for this process's first call (once; 10 to 30 s on a "
+        "2-core machine; later runs load them from Numba's cache)",
         file=sys.stderr,
         flush=True,
     )

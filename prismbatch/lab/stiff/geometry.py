@@ -13,7 +13,7 @@ import math
 import numpy as np
 
 from ...geometry import centroid_radius, halfplanes, rotation_with_axis
-from ...shapes import validate_polygon
+from ...outline import validate_polygon
 
 #: a's orientation in every constructed family: axis down, d_a = -z, end plane z = p_a[2].
 R_DOWN = np.diag([1.0, -1.0, -1.0])
