@@ -103,7 +103,7 @@ def face_rate(vx, vy, eang, etab, s, n, hx, hy, imax, imin, drop, zx, zy):
     hh = hx * hx + hy * hy
     k = (zx * hx + zy * hy) / hh if hh > 0.0 else 0.0
     ex, ey = zx - k * hx, zy - k * hy  # orders the chord's points as z does, well conditioned
-    gx, gy, _ = slab_support(vx, vy, eang, etab, s, n, zx, zy, hx, hy, imin, imax, level, math.inf, ex, ey)
+    gx, gy, _ = slab_support(vx, vy, eang, etab, s, n, zx, zy, hx, hy, imin, imax, level, math.inf, ex, ey, 0.0)
     return zx * gx + zy * gy
 
 

@@ -225,24 +225,32 @@ SLAB_INSIDE, SLAB_LO, SLAB_HI = 0, 1, 2
 
 
 @jit
-def slab_support(vx, vy, eang, etab, s, n, dx, dy, hx, hy, imin, imax, lo, hi, ex, ey):
-    """Maximise d.q over {q in polygon : lo <= h.q <= hi} (assumed non-empty).
+def slab_support(vx, vy, eang, etab, s, n, dx, dy, hx, hy, imin, imax, lo, hi, ex, ey, slack):
+    """Maximise d.q over {q in polygon : lo - slack <= h.q <= hi + slack} (assumed non-empty).
 
-    If the unconstrained maximiser violates one side of the slab, the
-    constrained maximum lies on that side's chord (an LP fact), found by
-    binary search. The chord's two ends are told apart by ``e``: any
+    If the unconstrained maximiser violates one side of the slab by more than
+    ``slack``, the constrained maximum lies on that side's chord (an LP fact),
+    found by binary search. The chord's two ends are told apart by ``e``: any
     direction that orders points on the chord like ``d`` does (d differs from
     e by a multiple of h, constant on the chord), chosen well conditioned.
     Returns (u, v, flag) with flag SLAB_INSIDE/LO/HI.
+
+    Why ``slack``: a side that is straight up to rounding (accepted outlines
+    may turn back by up to 4e-12 rad in all) is not monotone in h.q when h is
+    normal to it, so ``imin``/``imax`` may lie anywhere along it and a chord
+    at a level within that side's rounding band could end anywhere along it
+    (supports short by up to the side's length: missed contacts). A violation
+    within ``slack`` counts as inside; a larger one puts the level above that
+    band, where the chains from ``imin``/``imax`` are monotone.
     """
     k = extreme_vertex(vx, vy, eang, etab, s, n, dx, dy)
     u = vx[s + k]
     v = vy[s + k]
     hq = hx * u + hy * v
-    if hq > hi:
+    if hq > hi + slack:
         level = hi
         flag = SLAB_HI
-    elif hq < lo:
+    elif hq < lo - slack:
         level = lo
         flag = SLAB_LO
     else:
@@ -273,9 +281,12 @@ def support_spec(vx, vy, eang, etab, s, n, sp, dx, dy):
     hy = sp[SP_HY]
     imin = int(sp[SP_IMIN])
     imax = int(sp[SP_IMAX])
+    # The slab's sides may be missed by this much in height (see slab_support): points of B up to
+    # tolz + slack below a's end plane then count, still within the 2 tol a hit may be off.
+    slack = 0.0625 * tz
     tf = T if g > 0.0 else 0.0
     if c == 0.0:
-        u, v, _ = slab_support(vx, vy, eang, etab, s, n, au, av, hx, hy, imin, imax, -tz - pz, math.inf, au, av)
+        u, v, _ = slab_support(vx, vy, eang, etab, s, n, au, av, hx, hy, imin, imax, -tz - pz, math.inf, au, av, slack)
         t = tf
     else:
         k = extreme_vertex(vx, vy, eang, etab, s, n, au, av)
@@ -297,7 +308,7 @@ def support_spec(vx, vy, eang, etab, s, n, sp, dx, dy):
             else:
                 lo, hi, t_lo, t_hi = ht, h0, T, 0.0
             # On a chord (t fixed) the objective is a.q + const: compare ends by a.
-            u, v, flag = slab_support(vx, vy, eang, etab, s, n, du, dv, hx, hy, imin, imax, lo, hi, au, av)
+            u, v, flag = slab_support(vx, vy, eang, etab, s, n, du, dv, hx, hy, imin, imax, lo, hi, au, av, slack)
             if flag == SLAB_LO:
                 t = t_lo
             elif flag == SLAB_HI:
