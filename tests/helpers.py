@@ -6,7 +6,9 @@ Everything is a plain function of a ``numpy.random.Generator``; the fixtures tha
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 from scipy.spatial import ConvexHull
@@ -29,6 +31,17 @@ LARGE_COUNTS = (360, 1000, 3600)
 def from_hex(x):
     """A float array of hex-float strings (``float.hex``), nested as ``x`` is: recorded inputs, exact to the bit."""
     return np.vectorize(float.fromhex, otypes=[float])(np.array(x))
+
+
+def recorded(name):
+    """The parsed JSON of ``tests/data/<name>.json`` (recorded cases)."""
+    return json.loads((Path(__file__).resolve().parent / "data" / f"{name}.json").read_text())
+
+
+def recorded_pair(rec):
+    """``(xy_a, pos_a, rot_a, xy_b, pos_b, rot_b)`` of a recorded case's hex floats, shaped for the API."""
+    shapes = {"xy_a": (-1, 2), "pos_a": (3,), "rot_a": (3, 3), "xy_b": (-1, 2), "pos_b": (3,), "rot_b": (3, 3)}
+    return tuple(from_hex(rec[k]).reshape(s) for k, s in shapes.items())
 
 
 def sliver_far_from_origin():

@@ -9,9 +9,6 @@ plain ``collide``, bit for bit; bad margins are refused; serial equals parallel.
 
 from __future__ import annotations
 
-import json
-from pathlib import Path
-
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -26,13 +23,14 @@ from prismbatch.lab.distance_ref import signed_distance_reference
 
 from helpers import (
     bisect_to_contact,
-    from_hex,
     make_pairs,
     overlapping_pairs,
     pairs_from_rows,
     polygon_centre,
     polygon_radius,
     random_polygon,
+    recorded,
+    recorded_pair,
     regular_polygon,
     sample_vertex_count,
     separating_directions,
@@ -330,8 +328,7 @@ def test_contact_needs_margin_zero():
 # margin query with it. Strict: when it is fixed, this fails until the mark is removed.
 @pytest.mark.xfail(strict=True, reason="known: distance and margin 3.2 tol off on a polygon far from its own origin")
 def test_margin_on_a_polygon_far_from_its_own_origin():
-    d = json.loads((Path(__file__).resolve().parents[1] / "data" / "margin_far_polygon.json").read_text())
-    A, B = pb.Prism(from_hex(d["xy_a"]).reshape(-1, 2)), pb.Prism(from_hex(d["xy_b"]).reshape(-1, 2))
-    poses = [from_hex(d[k]).reshape(s) for k, s in (("pos_a", 3), ("rot_a", (3, 3)), ("pos_b", 3), ("rot_b", (3, 3)))]
-    tol = float.fromhex(d["tol"])
-    assert pb.collide(A, B, *poses, margin=(d["gap_over_tol"] + 1.5) * tol).hit[0]  # gap 1.5 tol inside the margin
+    d = recorded("margin_far_polygon")
+    xa, pa, Ra, xb, pb_, Rb = recorded_pair(d)
+    m = (d["gap_over_tol"] + 1.5) * float.fromhex(d["tol"])  # the gap 1.5 tol inside the margin
+    assert pb.collide(pb.Prism(xa), pb.Prism(xb), pa, Ra, pb_, Rb, margin=m).hit[0]

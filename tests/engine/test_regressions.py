@@ -14,7 +14,7 @@ import prismbatch as pb
 from prismbatch._kernels.planar import extreme_vertex
 from prismbatch.geometry import pair_scale_tolerance
 
-from helpers import from_hex
+from helpers import from_hex, recorded, recorded_pair
 from reference import margin_lp, point_in_prism_residual
 
 DATA = Path(__file__).resolve().parents[1] / "data"
@@ -306,27 +306,16 @@ def test_end_faces_far_from_their_local_origin():
             assert check_contact(xa, pa, ra, xb, pb_, rb, c, reach) is not False
 
 
-def _flat_side_cases():
-    return json.loads((DATA / "flat_side_at_slab_level.json").read_text())["cases"]
-
-
-def _flat_side_pair(case):
-    xa, xb = from_hex(case["xy_a"]).reshape(-1, 2), from_hex(case["xy_b"]).reshape(-1, 2)
-    poses = tuple(from_hex(case[k]).reshape(s) for k, s in (("pos_a", 3), ("rot_a", (3, 3))))
-    poses += tuple(from_hex(case[k]).reshape(s) for k, s in (("pos_b", 3), ("rot_b", (3, 3))))
-    return xa, xb, poses, float.fromhex(case["tol"])
-
-
 # b's side, straight up to rounding (or bent back within the polygon checks' limits), lies at the
 # height where the projection cuts b, and its end is within tol of a's side face; the chord search
 # ended anywhere along that side and collide said miss. Exact gaps: tests/lab/test_exact_reference.py.
-@pytest.mark.parametrize("k", range(len(_flat_side_cases())))
-def test_flat_side_at_the_projection_cut_hits(k):
-    xa, xb, poses, tol = _flat_side_pair(_flat_side_cases()[k])
+@pytest.mark.parametrize("case", recorded("flat_side_at_slab_level")["cases"])
+def test_flat_side_at_the_projection_cut_hits(case):
+    xa, pa, Ra, xb, pb_, Rb = recorded_pair(case)
+    tol = float.fromhex(case["tol"])
     A, B = pb.Prism(xa), pb.Prism(xb)
-    r = pb.collide(A, B, *poses, contact=True)
-    assert r.hit[0] and pb.collide(A, B, *poses).hit[0]
-    pa, Ra, pb_, Rb = poses
+    r = pb.collide(A, B, pa, Ra, pb_, Rb, contact=True)
+    assert r.hit[0] and pb.collide(A, B, pa, Ra, pb_, Rb).hit[0]
     assert point_in_prism_residual(xa, pa, Ra, r.contact[0]) <= 2 * tol
     assert point_in_prism_residual(xb, pb_, Rb, r.contact[0]) <= 2 * tol
 
@@ -337,8 +326,7 @@ def test_flat_side_at_the_projection_cut_hits(k):
 # accept a gap up to tol itself, with no room for it.
 @pytest.mark.xfail(strict=True, reason="known: a gap of 0.997 tol missed 5.5e7 from the polygons' own origins")
 def test_gap_just_below_tol_far_from_the_local_origin():
-    d = json.loads((DATA / "far_local_origin_just_below_tol.json").read_text())
-    A, B = pb.Prism(from_hex(d["xy_a"])), pb.Prism(from_hex(d["xy_b"]))
-    poses = [from_hex(d[k]).reshape(s) for k, s in (("pos_a", 3), ("rot_a", (3, 3)), ("pos_b", 3), ("rot_b", (3, 3)))]
+    d = recorded("far_local_origin_just_below_tol")
+    xa, pa, Ra, xb, pb_, Rb = recorded_pair(d)
     assert d["gap_over_tol"] < 1.0
-    assert pb.collide(A, B, *poses).hit[0]
+    assert pb.collide(pb.Prism(xa), pb.Prism(xb), pa, Ra, pb_, Rb).hit[0]

@@ -18,9 +18,10 @@ from hypothesis import assume, example, given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
+import prismbatch as pb
 from prismbatch.lab.exact_gap import check_contact, exact_quat_matrix, gap_bounds, judge_pair
 
-from helpers import sliver_far_from_origin
+from helpers import recorded, recorded_pair, sliver_far_from_origin
 
 pytest.importorskip("highspy")
 
@@ -157,19 +158,12 @@ def test_a_sliver_far_from_its_origin_keeps_its_orientation():
     assert judge_pair(xy, np.zeros(3), np.eye(3), xy, np.array([0.0, 0.0, -1.0]), down, 1e-3).verdict == "miss"
 
 
-def _flat_side_cases():
-    return json.loads((DATA / "flat_side_at_slab_level.json").read_text())["cases"]
-
-
-@pytest.mark.parametrize("k", range(len(_flat_side_cases())))
-def test_recorded_flat_side_gaps_are_below_tol(k):
+@pytest.mark.parametrize("case", recorded("flat_side_at_slab_level")["cases"])
+def test_recorded_flat_side_gaps_are_below_tol(case):
     # The engine test of these pairs (tests/engine/test_regressions.py) asserts a hit: certify that
     # the contract requires one, and the gap recorded with each case.
-    case = _flat_side_cases()[k]
-    h = lambda key, shape: np.array([float.fromhex(x) for x in case[key]]).reshape(shape)  # noqa: E731
-    args = (h("xy_a", (-1, 2)), h("pos_a", (3,)), h("rot_a", (3, 3)), h("xy_b", (-1, 2)), h("pos_b", (3,)))
     tol = float.fromhex(case["tol"])
-    j = judge_pair(*args, h("rot_b", (3, 3)), tol)
+    j = judge_pair(*recorded_pair(case), tol)
     assert j.verdict == "hit"
     assert float(j.gap2_lo) ** 0.5 / tol == pytest.approx(case["gap_over_tol"], rel=1e-6)
 
@@ -178,8 +172,6 @@ def _side_at_the_cut(seed):
     """A pair whose b has a side sampled densely with np.linspace (straight up to rounding), turned and moved
     from its local origin, lying at the height where collide's projection cuts b (tol below a's end plane),
     with the side's end ``g tol`` from a's side face; b's axis perpendicular or tilted towards a."""
-    import prismbatch as pb
-
     rng = np.random.default_rng(seed)
     L, k, H, dl = (
         10.0 ** rng.uniform(-3, 3),
@@ -227,8 +219,6 @@ def _side_at_the_cut(seed):
 @example(seed=38)
 @example(seed=122)
 def test_sides_at_the_projection_cut_keep_the_contract(seed):
-    import prismbatch as pb
-
     pair = _side_at_the_cut(seed)
     assume(pair is not None)
     xy_a, xy_b, pos_b, rot_b, tol = pair
@@ -238,20 +228,10 @@ def test_sides_at_the_projection_cut_keep_the_contract(seed):
     assert not (j.verdict == "hit" and not hit) and not (j.verdict == "miss" and hit), (j, hit)
 
 
-def test_recorded_margin_case_gap():
-    # The exact gap behind tests/engine/test_margin.py's known wrong answer.
-    d = json.loads((DATA / "margin_far_polygon.json").read_text())
-    h = lambda key, shape: np.array([float.fromhex(x) for x in d[key]]).reshape(shape)  # noqa: E731
-    args = (h("xy_a", (-1, 2)), h("pos_a", (3,)), h("rot_a", (3, 3)), h("xy_b", (-1, 2)), h("pos_b", (3,)))
-    tol = float.fromhex(d["tol"])
-    g = gap_bounds(*args, h("rot_b", (3, 3)))
-    assert float(_exact_gap2(g)) ** 0.5 / tol == pytest.approx(d["gap_over_tol"], rel=1e-9)
-
-
-def test_recorded_far_local_origin_gap():
-    # The exact gap behind tests/engine/test_regressions.py's known wrong answer.
-    d = json.loads((DATA / "far_local_origin_just_below_tol.json").read_text())
-    h = lambda key, shape: np.array([float.fromhex(x) for x in np.ravel(d[key])]).reshape(shape)  # noqa: E731
-    args = (h("xy_a", (-1, 2)), h("pos_a", (3,)), h("rot_a", (3, 3)), h("xy_b", (-1, 2)), h("pos_b", (3,)))
-    g = gap_bounds(*args, h("rot_b", (3, 3)))
+@pytest.mark.parametrize("name", ["margin_far_polygon", "far_local_origin_just_below_tol"])
+def test_recorded_gaps_of_known_wrong_answers(name):
+    # The exact gaps behind the known wrong answers kept as expected failures in tests/engine
+    # (test_margin.py and test_regressions.py).
+    d = recorded(name)
+    g = gap_bounds(*recorded_pair(d))
     assert float(_exact_gap2(g)) ** 0.5 / float.fromhex(d["tol"]) == pytest.approx(d["gap_over_tol"], rel=1e-9)
