@@ -118,7 +118,10 @@ def _staged(stage, A, B, pos_a, rot_a, pos_b, rot_b, rtol, eps, out):
             out[i] = pz + r22 + r00 + r11 > 0.0
             continue
         cd = math.sqrt(px * px + py * py + pz * pz)
-        tol = pair_tolerance(arad[0], brad[0], cd, ox, oy, oz, dx, dy, dz, acx, acy, bcx, bcy, rtol, 0.0, eps)
+        base, rounding = pair_tolerance(
+            arad[0], brad[0], cd, ox, oy, oz, dx, dy, dz, acx, acy, bcx, bcy, rtol, 0.0, eps
+        )
+        tol = base + rounding
         if stage == 3:
             out[i] = pz + r22 > tol
             continue

@@ -45,7 +45,7 @@ def centres_world(acx, acy, bcx, bcy, Pa, Ra, Pb, Rb):
 @jit(inline="always")
 def pair_tolerance(ra, rb, centre_distance, ox, oy, oz, dx, dy, dz, acx, acy, bcx, bcy, rtol, atol, eps):
     """The pair's tolerance ``atol + rtol S + 4 eps (|c_a| + |c_b|) + 8 eps (|k_a|_1 + |k_b|_1)``,
-    S = ra + rb + |c_b - c_a|.
+    S = ra + rb + |c_b - c_a|, as its two parts ``(atol + rtol S, the rest)``.
 
     Scale-aware: rounding grows with the sizes involved. The world centres are only known to
     eps |c| (o = c_a and d = c_b - c_a from :func:`centres_world`), and forming them from the
@@ -55,7 +55,67 @@ def pair_tolerance(ra, rb, centre_distance, ox, oy, oz, dx, dy, dz, acx, acy, bc
     """
     far = math.sqrt(ox * ox + oy * oy + oz * oz) + math.sqrt((dx + ox) ** 2 + (dy + oy) ** 2 + (dz + oz) ** 2)
     local = abs(acx) + abs(acy) + abs(bcx) + abs(bcy)
-    return atol + rtol * (ra + rb + centre_distance) + eps * (4.0 * far + 8.0 * local)
+    return atol + rtol * (ra + rb + centre_distance), eps * (4.0 * far + 8.0 * local)
+
+
+@jit(inline="always")
+def two_sum(a, b):
+    """``(s, e)``: s = fl(a + b) and its rounding error, s + e = a + b exactly (Knuth)."""
+    s = a + b
+    t = s - a
+    return s, (a - (s - t)) + (b - t)
+
+
+@jit(inline="always")
+def two_product(a, b):
+    """``(p, e)``: p = fl(a b) and its rounding error, p + e = a b exactly (Dekker's split, no FMA
+    needed; exact for |a|, |b| below 1e290, far above the supported range)."""
+    p = a * b
+    c = 134217729.0 * a  # 2^27 + 1
+    ah = c - (c - a)
+    c = 134217729.0 * b
+    bh = c - (c - b)
+    al, bl = a - ah, b - bh
+    return p, ((ah * bh - p) + ah * bl + al * bh) + al * bl
+
+
+@jit(inline="always")
+def _offset_twice_precise(i, acx, acy, bcx, bcy, Pa, Ra, Pb, Rb):
+    """Component i of d = c_b - c_a summed in twice the working precision (Ogita, Rump and Oishi's
+    Dot2), then rounded: within eps |d_i| plus a term of order eps^2 (|P| + |k|)."""
+    s, c = two_sum(np.float64(Pb[i]), -np.float64(Pa[i]))
+    for x, y in ((Rb[i, 0], bcx), (Rb[i, 1], bcy), (-Ra[i, 0], acx), (-Ra[i, 1], acy)):
+        h, r = two_product(np.float64(x), np.float64(y))
+        s, q = two_sum(s, h)
+        c += q + r
+    return s + c
+
+
+# Below this fraction of the rest of tol, the plain sum's rounding (at most about half the rounding
+# part of tol) leaves d where it is to within tol / 4096; above it, d is formed again more precisely.
+PLAIN_SUM_SHARE = 1.0 / 2048.0
+
+
+@jit(inline="always")
+def centres_and_tolerance(acx, acy, bcx, bcy, Pa, Ra, Pb, Rb, ra, rb, rtol, atol, eps):
+    """:func:`centres_world` and the pair's tolerance (:func:`pair_tolerance`): ``(ox, oy, oz, dx,
+    dy, dz, tol)``.
+
+    Where the positions or the polygons' own offsets are so large against the pair that the plain
+    sum's rounding is a noticeable part of tol (objects far from the world origin, polygons far from
+    their own origin), d is formed again in twice the precision: a gap of 0.997 tol between
+    polygons 5.5e7 from their own origins was moved above tol by that rounding, and missed.
+    """
+    ox, oy, oz, dx, dy, dz = centres_world(acx, acy, bcx, bcy, Pa, Ra, Pb, Rb)
+    centre_distance = math.sqrt(dx * dx + dy * dy + dz * dz)
+    base, rounding = pair_tolerance(
+        ra, rb, centre_distance, ox, oy, oz, dx, dy, dz, acx, acy, bcx, bcy, rtol, atol, eps
+    )
+    if rounding > PLAIN_SUM_SHARE * base:
+        dx = _offset_twice_precise(0, acx, acy, bcx, bcy, Pa, Ra, Pb, Rb)
+        dy = _offset_twice_precise(1, acx, acy, bcx, bcy, Pa, Ra, Pb, Rb)
+        dz = _offset_twice_precise(2, acx, acy, bcx, bcy, Pa, Ra, Pb, Rb)
+    return ox, oy, oz, dx, dy, dz, base + rounding
 
 
 @jit(error_model="numpy", inline="always")
@@ -145,7 +205,9 @@ def pair_world(
     None, or TRACE_SIZE floats to fill (see _projection.TRACE_FIELDS).
     """
     acx, acy, bcx, bcy = acen[ka, 0], acen[ka, 1], bcen[kb, 0], bcen[kb, 1]
-    ox, oy, oz, dx, dy, dz = centres_world(acx, acy, bcx, bcy, Pa, Ra, Pb, Rb)
+    ra = arad[ka]
+    rb = brad[kb]
+    ox, oy, oz, dx, dy, dz, tol = centres_and_tolerance(acx, acy, bcx, bcy, Pa, Ra, Pb, Rb, ra, rb, rtol, atol, eps)
     # b's pose in a's centred frame, p = Ra^-1 d and R = Ra^-1 Rb. Callers whose a changes with every
     # pair pass None and the inverse is formed here (the None branch is pruned when compiling).
     if inv is None:
@@ -168,10 +230,6 @@ def pair_world(
     r02 = i00 * ex + i01 * ey + i02 * ez
     r12 = i10 * ex + i11 * ey + i12 * ez
     r22 = s + (i20 * ex + i21 * ey + i22 * ez)
-    ra = arad[ka]
-    rb = brad[kb]
-    centre_distance = math.sqrt(px * px + py * py + pz * pz)
-    tol = pair_tolerance(ra, rb, centre_distance, ox, oy, oz, dx, dy, dz, acx, acy, bcx, bcy, rtol, atol, eps)
     sa = aoff[ka]
     na = aoff[ka + 1] - sa
     sb = boff[kb]

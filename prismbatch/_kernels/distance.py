@@ -30,11 +30,11 @@ import math
 import numpy as np
 from numba import prange
 
-from .batch import centres_world, pair_tolerance, unpack
+from .batch import centres_and_tolerance, unpack
 from .gjk3d import gjk
 from .jit import jit, twins
 from .minkowski import cut_difference, point_a, support
-from .parallel import parallel_overlap, tilted_overlap
+from .parallel import parallel_gap, parallel_overlap, tilted_overlap
 from .vec3 import cross, diff, dot, row, sub
 
 SEPARATED, TOUCHING, PENETRATING = 1, 0, -1
@@ -69,7 +69,7 @@ SEEN_SLACK = 1e-2
 #: the depth of exactly parallel axes pointing the same way, from their end faces in the plane (where EPA
 #: stopped early on them: :mod:`.parallel`); the depth of other axes pointing the same way (nearly parallel:
 #: EPA has only stopped on those) by the separating-axis theorem, where EPA stopped early.
-GJK_GAP, EPA_DEPTH, EPA_STOPPED, FLAT, GJK_STALLED, PLANAR_DEPTH, AXES_DEPTH = 0, 1, 2, 3, 4, 5, 6
+GJK_GAP, EPA_DEPTH, EPA_STOPPED, FLAT, GJK_STALLED, PLANAR_DEPTH, AXES_DEPTH, PLANAR_GAP = 0, 1, 2, 3, 4, 5, 6, 7
 
 
 # --- EPA ------------------------------------------------------------------------------------------
@@ -319,14 +319,22 @@ def pair_distance(P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, rtol, atol, eps, witnes
     (3-tuple) points from a to b, point_b = point_a + distance * normal; both NaN unless ``witness``.
     """
     W, I, lam = work[0], work[1], work[2]
-    ox, oy, oz, dx, dy, dz = centres_world(ca[0], ca[1], cb[0], cb[1], Pa, Ra, Pb, Rb)
-    centre_distance = math.sqrt(dx * dx + dy * dy + dz * dz)
-    S = ra + rb + centre_distance
-    tol = pair_tolerance(ra, rb, centre_distance, ox, oy, oz, dx, dy, dz, ca[0], ca[1], cb[0], cb[1], rtol, atol, eps)
+    ox, oy, oz, dx, dy, dz, tol = centres_and_tolerance(
+        ca[0], ca[1], cb[0], cb[1], Pa, Ra, Pb, Rb, ra, rb, rtol, atol, eps
+    )
+    S = ra + rb + math.sqrt(dx * dx + dy * dy + dz * dz)
     L = BOX * S
     acc = max(ACC_FRACTION * tol, ACC_EPS * EPS64 * L)
     loose = max(LOOSE_FRACTION * tol, acc)
     fr, cone, s, (ex, ey, ez) = cut_difference(Ra, Rb, dx, dy, dz, L)
+    if ex == 0.0 and ey == 0.0 and ez == 0.0:
+        # exactly parallel axes: apart in the plane, the gap is that of the end faces there and along the
+        # axes (no cut box)
+        lower, gap, nrm, pa = parallel_gap(P, ix, Ra, Rb, ox, oy, oz, dx, dy, dz, acc, s)
+        if lower > 0.0:
+            if not witness:
+                nrm = pa = (math.nan, math.nan, math.nan)
+            return gap, tol, PLANAR_GAP, nrm, pa
     m, vx, vy, vz, inside, lower = gjk(P, ix, fr, cone, 0.0, 0.0, 0.0, acc, loose, W, I, lam)
     code = GJK_GAP
     if inside and lower > acc:

@@ -35,11 +35,12 @@ import math
 import numpy as np
 from numba import prange
 
-from .batch import centres_world, pair_tolerance, unpack, use_parallel
+from .batch import centres_and_tolerance, unpack, use_parallel
 from .distance import BOX, EPA_ROOM, block_of, pair_distance_any_room, pair_index, workspace
 from .gjk3d import GJK_MAX_ITER, closest
 from .jit import first_call, jit, twins
 from .minkowski import cut_difference, support
+from .parallel import parallel_gap
 from .planar import point_polygon_distance
 
 #: The decision thresholds sit this fraction of the pair tolerance either side of the margin.
@@ -76,9 +77,10 @@ def pair_margin(P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, margin, rtol, atol, eps, 
     pair's tolerance; ``code``: :data:`DECIDED`, or :data:`UNDECIDED` (``hit`` is then False and
     meaningless). Arguments as :func:`~prismbatch._kernels.distance.pair_distance`, and a's vertex
     angles and inverse edge lengths (for the inside test of b's centre)."""
-    ox, oy, oz, dx, dy, dz = centres_world(ca[0], ca[1], cb[0], cb[1], Pa, Ra, Pb, Rb)
+    ox, oy, oz, dx, dy, dz, tol = centres_and_tolerance(
+        ca[0], ca[1], cb[0], cb[1], Pa, Ra, Pb, Rb, ra, rb, rtol, atol, eps
+    )
     centre_distance = math.sqrt(dx * dx + dy * dy + dz * dz)
-    tol = pair_tolerance(ra, rb, centre_distance, ox, oy, oz, dx, dy, dz, ca[0], ca[1], cb[0], cb[1], rtol, atol, eps)
     hi = margin + SLACK * tol
     lo = margin - SLACK * tol
     dax, day, daz = np.float64(Ra[0, 2]), np.float64(Ra[1, 2]), np.float64(Ra[2, 2])
@@ -92,6 +94,14 @@ def pair_margin(P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, margin, rtol, atol, eps, 
         # float32), so they must clear the margin by FAR_SLACK of the pair's size.
         far = lo + FAR_SLACK * (ra + rb + centre_distance)
         if -(pz + rb) > far or (dbx * dx + dby * dy + dbz * dz) - ra > far:
+            return False, DECIDED
+    s = 1.0 if dax * dbx + day * dby + daz * dbz >= 0.0 else -1.0
+    if dbx == s * dax and dby == s * day and dbz == s * daz:
+        # exactly parallel axes: apart in the plane, the gap as pair_distance takes it (parallel_gap)
+        lower, gap, _, _ = parallel_gap(P, ix, Ra, Rb, ox, oy, oz, dx, dy, dz, SLACK * tol, s)
+        if lower > 0.0 and gap <= hi:
+            return True, DECIDED
+        if lower > lo:
             return False, DECIDED
     # D_L as pair_distance builds it.
     fr, cone, _, _ = cut_difference(Ra, Rb, dx, dy, dz, BOX * (ra + rb + centre_distance))

@@ -66,6 +66,9 @@ from .vec3 import rotate_by
 CONTACT, CLEAR, UNDECIDED = 1, 0, -1
 #: Internal status of the batch loop: EPA ran out of the block's room; the pair is computed again with more.
 RERUN = -2
+#: :func:`face_rate` cuts at least this many radii (times |h|) below the top: over 100 times the band
+#: of 8e-12 r within which an accepted outline's sides are straight only up to rounding.
+FACE_BAND = 2.0**-30
 
 
 @jit(inline="always")
@@ -91,19 +94,26 @@ def reach(step, S, theta, rise, centre_speed, w_perp):
 
 
 @jit(inline="always")
-def face_rate(vx, vy, eang, etab, s, n, hx, hy, imax, imin, drop, zx, zy):
-    """Largest z.g over the points g of a polygon with h.g >= h.g_imax - drop.
+def face_rate(vx, vy, eang, etab, s, n, r, hx, hy, imax, imin, drop, zx, zy):
+    """An upper bound on the largest z.g over the points g of a polygon with h.g >= h.g_imax - drop.
 
-    The polygon is a slice ``[s, s + n)`` of vertex arrays (about its centre), ``imax`` and
-    ``imin`` its vertices of largest and least h.g. The set is the polygon cut by a line, and the
+    The polygon is a slice ``[s, s + n)`` of vertex arrays (about its centre), of radius ``r``; ``imax``
+    and ``imin`` its vertices of largest and least h.g. The set is the polygon cut by a line, and the
     largest z.g over it is the unconstrained maximiser or an end of the chord on that line
     (:func:`~prismbatch._kernels.planar.slab_support`), O(log n).
+
+    The cut goes at least FACE_BAND r |h| below the top, and a maximiser within that of it counts as
+    inside: a side straight only up to rounding (within 8e-12 r of its line) is not monotone in h.g
+    when h is normal to it, and a cut within that band (drop 0 or tiny, on a slow turn) found the
+    chord's ends anywhere along it, short by up to the side's length. Enlarging the set only raises
+    the bound.
     """
-    level = hx * vx[s + imax] + hy * vy[s + imax] - drop
     hh = hx * hx + hy * hy
+    band = FACE_BAND * r * math.sqrt(hh)
+    level = hx * vx[s + imax] + hy * vy[s + imax] - max(drop, band)
     k = (zx * hx + zy * hy) / hh if hh > 0.0 else 0.0
     ex, ey = zx - k * hx, zy - k * hy  # orders the chord's points as z does, well conditioned
-    gx, gy, _ = slab_support(vx, vy, eang, etab, s, n, zx, zy, hx, hy, imin, imax, level, math.inf, ex, ey, 0.0)
+    gx, gy, _ = slab_support(vx, vy, eang, etab, s, n, zx, zy, hx, hy, imin, imax, level, math.inf, ex, ey, band)
     return zx * gx + zy * gy
 
 
@@ -124,7 +134,7 @@ def directional_bounds(step, q, side):
     if wn > 0.0:  # the end face: its centre, then the polygon's points that can be the support along u~
         vx, vy, eang, etab, s, n = poly
         face = lev_rate + delta * lev_abs + drift * uw * step + r * wn * delta
-        face += face_rate(vx, vy, eang, etab, s, n, hx, hy, imax, imin, 2.0 * r * delta, zx, zy)
+        face += face_rate(vx, vy, eang, etab, s, n, r, hx, hy, imax, imin, 2.0 * r * delta, zx, zy)
         rate += min(face, uw * (lev_len + drift * step + r))
     axis = 0.0
     if axis_perp > 0.0 and lean + delta >= 0.0:  # the axis may lean along u: its far points can lead

@@ -100,6 +100,102 @@ def parallel_overlap(P, ix, Ra, Rb, ox, oy, oz, dx, dy, dz):
     return best, (gx / gn, gy / gn, gz / gn), point
 
 
+#: Most iterations of :func:`parallel_gap` (each adds a support of the end faces' difference).
+PLANAR_GAP_MAX_ITER = 256
+
+
+@jit(inline="always")
+def _planar_support(P, ix, rel, ux, uy):
+    """The end faces' difference A - B' (B' = b's end face in a's plane) in the direction u: ``(wx, wy,
+    ax, ay, i, j)``, w = a - b' from a's vertex i furthest along u and b's vertex j furthest along -u."""
+    avx, avy, aeang, aetab, bvx, bvy, beang, betab = P
+    sa, na, sb, nb = ix
+    px, py, _, m00, m01, m10, m11, _, _ = rel
+    i = sa + extreme_vertex(avx, avy, aeang, aetab, sa, na, ux, uy)
+    j = sb + extreme_vertex(bvx, bvy, beang, betab, sb, nb, -(m00 * ux + m10 * uy), -(m01 * ux + m11 * uy))
+    bx = px + m00 * bvx[j] + m01 * bvy[j]
+    by = py + m10 * bvx[j] + m11 * bvy[j]
+    return avx[i] - bx, avy[i] - by, avx[i], avy[i], i, j
+
+
+@jit(inline="always")
+def _segment_closest(px, py, qx, qy):
+    """The parameter t in [0, 1] of the point of segment pq nearest the origin."""
+    ex, ey = qx - px, qy - py
+    ee = ex * ex + ey * ey
+    return min(max(-(px * ex + py * ey) / ee, 0.0), 1.0) if ee > 0.0 else 0.0
+
+
+@jit(error_model="numpy")
+def parallel_gap(P, ix, Ra, Rb, ox, oy, oz, dx, dy, dz, acc, s):
+    """``(lower, gap, normal, point_a)`` in world coordinates for exactly parallel axes, pointing the same
+    way (``s`` = 1) or opposite ways (``s`` = -1).
+
+    In a's centred frame A = P_a x [0, inf) and B = B' x [p_z, inf) (s = 1) or B' x (-inf, p_z] (s = -1),
+    B' = b's end face in a's plane; sets that are products so are apart by the planar distance of P_a and
+    B' and the distance of the two intervals (0, or -p_z when the end faces face each other apart) in
+    quadrature. The planar distance: 2-D GJK on the end faces' difference, O(log n) supports a step,
+    until within ``acc`` of its lower bound ``lower`` (> 0 proves the end faces apart in the plane; <= 0:
+    they touch or overlap there and ``gap`` means nothing). In 3-D, GJK on the difference cut by a box
+    (:mod:`.distance`) stalled on such pairs, 1 to 3 tol off (a polygon 3e5 times the other's size; two
+    1e-5 polygons 12 apart along facing axes, a thin needle of a difference). ``normal`` (unit) points
+    from a to b, ``point_a`` lies on a's boundary, point_a + gap normal on b's.
+    """
+    inv = frame_inverse(Ra)
+    rel = relative_pose(inv, dx, dy, dz, Rb)
+    px, py, pz = rel[0], rel[1], rel[2]
+    ux, uy = (-px, -py) if px != 0.0 or py != 0.0 else (1.0, 0.0)
+    # the simplex: one point (k = 1) or a segment (k = 2) of the difference, with a's points behind them
+    w0x, w0y, a0x, a0y, i0, j0 = _planar_support(P, ix, rel, ux, uy)
+    w1x, w1y, a1x, a1y, i1, j1 = w0x, w0y, a0x, a0y, i0, j0
+    k, t = 1, 0.0
+    vx, vy = w0x, w0y
+    lower = -math.inf
+    for _ in range(PLANAR_GAP_MAX_ITER):
+        vn = math.sqrt(vx * vx + vy * vy)
+        if vn == 0.0:
+            break
+        wx, wy, ax, ay, i, j = _planar_support(P, ix, rel, -vx, -vy)
+        lower = max(lower, (vx * wx + vy * wy) / vn)
+        if vn - lower <= acc or (i == i0 and j == j0) or (k == 2 and i == i1 and j == j1):
+            break  # converged, or no new point (rounding): |v| is then within vn - lower of the gap
+        if k == 1:
+            w1x, w1y, a1x, a1y, i1, j1 = wx, wy, ax, ay, i, j
+            k = 2
+        else:
+            c0 = w0x * w1y - w0y * w1x  # o inside the triangle w0 w1 w: the end faces overlap (lower <= 0)
+            c1 = w1x * wy - w1y * wx
+            c2 = wx * w0y - wy * w0x
+            if (c0 >= 0.0 and c1 >= 0.0 and c2 >= 0.0) or (c0 <= 0.0 and c1 <= 0.0 and c2 <= 0.0):
+                lower = min(lower, 0.0)
+                break
+            # o outside: its nearest point lies on an edge through w, from whichever old point is nearer
+            t0 = _segment_closest(w0x, w0y, wx, wy)
+            t1 = _segment_closest(w1x, w1y, wx, wy)
+            d0x, d0y = w0x + t0 * (wx - w0x), w0y + t0 * (wy - w0y)
+            d1x, d1y = w1x + t1 * (wx - w1x), w1y + t1 * (wy - w1y)
+            if d1x * d1x + d1y * d1y < d0x * d0x + d0y * d0y:
+                w0x, w0y, a0x, a0y, i0, j0 = w1x, w1y, a1x, a1y, i1, j1
+            w1x, w1y, a1x, a1y, i1, j1 = wx, wy, ax, ay, i, j
+        t = _segment_closest(w0x, w0y, w1x, w1y) if k == 2 else 0.0
+        vx, vy = w0x + t * (w1x - w0x), w0y + t * (w1y - w0y)
+    # heights: both hold every z >= max(0, p_z) (s = 1), or [0, p_z]; facing end faces apart: a's at 0, b's at p_z
+    z, rise = (max(0.0, pz), 0.0) if s > 0.0 else (0.0, min(0.0, pz))
+    gap = math.sqrt(vx * vx + vy * vy + rise * rise)
+    if rise < 0.0 and lower > 0.0:
+        lower = math.sqrt(lower * lower + rise * rise)
+    qx, qy = a0x + t * (a1x - a0x), a0y + t * (a1y - a0y)  # a's point of the closest pair
+    nx, ny, nz = (-vx / gap, -vy / gap, rise / gap) if gap > 0.0 else (1.0, 0.0, 0.0)  # v = a - b': a to b is -v
+    gx, gy, gz = normal_to_world(inv, nx, ny, nz)
+    gn = math.sqrt(gx * gx + gy * gy + gz * gz)
+    point = (
+        ox + Ra[0, 0] * qx + Ra[0, 1] * qy + Ra[0, 2] * z,
+        oy + Ra[1, 0] * qx + Ra[1, 1] * qy + Ra[1, 2] * z,
+        oz + Ra[2, 0] * qx + Ra[2, 1] * qy + Ra[2, 2] * z,
+    )
+    return lower, gap, (gx / gn, gy / gn, gz / gn), point
+
+
 # --- nearly parallel axes: the separating-axis theorem in 3-D -------------------------------------
 
 

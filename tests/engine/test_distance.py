@@ -17,6 +17,9 @@ the API (pose forms, threads, dtypes, the result object, errors) in ``test_dista
 
 from __future__ import annotations
 
+import math
+from fractions import Fraction
+
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -26,6 +29,7 @@ from scipy.spatial.transform import Rotation
 import prismbatch as pb
 from prismbatch.distance import (
     PENETRATING,
+    PLANAR_GAP,
     SEPARATED,
     TOUCHING,
     distance,
@@ -229,6 +233,81 @@ def test_planar_depth_of_parallel_axes_against_the_reference():
         assert abs(res_a) <= tol and abs(res_b) <= tol, (checked, res_a / tol, res_b / tol)
         checked += 1
     assert checked > 60
+
+
+def _planar_polygon_distance(P, Q):
+    """Plain reference: the distance of two disjoint convex polygons (k, 2), the least distance of a
+    vertex of one to an edge of the other."""
+
+    def vertex_to_edges(V, W):
+        a, b = W, np.roll(W, -1, axis=0)
+        e = b - a
+        t = np.clip(np.einsum("vej,ej->ve", V[:, None, :] - a[None], e) / np.einsum("ej,ej->e", e, e), 0, 1)
+        return np.linalg.norm(a[None] + t[..., None] * e[None] - V[:, None, :], axis=2).min()
+
+    return min(vertex_to_edges(P, Q), vertex_to_edges(Q, P))
+
+
+def _solve_exactly(R, d):
+    """x with R x = d in rational arithmetic (Cramer's rule on the float matrix as given)."""
+    M = [[Fraction(v) for v in row] for row in R]
+
+    def det(m):
+        return (
+            m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
+            - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+            + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
+        )
+
+    D = det(M)
+    return [det([[d[i] if j == c else M[i][j] for j in range(3)] for i in range(3)]) / D for c in range(3)]
+
+
+def test_gap_of_exactly_parallel_axes_against_the_reference():
+    """Separated pairs with exactly parallel axes, pointing the same way (the same rotation) or opposite
+    ways (b's rotation a's with its y and z columns negated), the end faces apart in the plane by 1e-6 to
+    1 of their size: the gap (solver PLANAR_GAP) is the end faces' planar distance, and opposite ways also
+    their distance along the axes in quadrature, against a plain vertex-to-edge reference in a's plane;
+    witnesses on their bodies and point_b - point_a = distance * normal. Sizes 1 to 1e5 apart, the larger
+    polygon up to 1e8 from its own origin (where GJK on the box-cut difference stalled 3.2 tol off)."""
+    rng = np.random.default_rng(29)
+    checked = [0, 0]
+    for k in range(160):
+        A = random_polygon(rng, sample_vertex_count(rng, "smallmed" if k % 5 else "large"))
+        B = random_polygon(rng, sample_vertex_count(rng, "smallmed")) * 10.0 ** rng.uniform(0, 5 if k % 2 else 0)
+        B = B + (10.0 ** rng.uniform(0, 8) if k % 3 == 0 else 0.0) * rng.normal(size=2)  # far from its origin
+        R = Rotation.random(random_state=rng).as_matrix()
+        facing = k % 4 >= 2
+        flip = np.array([1.0, -1.0]) if facing else np.ones(2)  # b's in-plane axes seen from a
+        Rb = R * np.array([1.0, -1.0, -1.0]) if facing else R
+        ca, cb = polygon_centre(A), polygon_centre(B)
+        ra, rb = polygon_radius(A), polygon_radius(B)
+        u = rng.normal(size=2)
+        u /= np.linalg.norm(u)
+        # b's centre in a's plane beyond the sum of the radii along u, then moved back to a gap of
+        # about 10^-6..1 of the size along u (planar distance known only to the reference)
+        shift = ((A - ca) @ u).max() - (((B - cb) * flip) @ u).min() + 10.0 ** rng.uniform(-6, 0) * (ra + rb)
+        off = shift * u + rng.uniform(-0.3, 0.3) * (ra + rb) * np.array([-u[1], u[0]])
+        pa = rng.uniform(-2, 2, 3)
+        pb_ = pa + R[:, :2] @ ca + R @ np.array([*off, rng.uniform(-2, 2) * (ra + rb)]) - Rb[:, :2] @ cb
+        # the reference in a's frame, about a's centre; b's origin there, R^-1 (pb_ - pa), solved exactly
+        # (pb_ holds R cb, up to 1e8, whose rounding would move the reference by eps |R cb|)
+        x, y, z = _solve_exactly(R, [Fraction(v) - Fraction(w) for v, w in zip(pb_, pa)])
+        ka = (Fraction(ca[0]), Fraction(ca[1]))
+        Bpl = np.array([[float(Fraction(u) + x - ka[0]), float(Fraction(v) + y - ka[1])] for u, v in B * flip])
+        rise = max(0.0, -float(z)) if facing else 0.0  # facing end faces apart along the axes (a's at 0)
+        ref = math.hypot(_planar_polygon_distance(A - ca, Bpl), rise)
+        r = pb.distance(pb.Prism(A), pb.Prism(B), pa, R, pb_, Rb, witness=True)
+        tol = r.tol[0]
+        if ref <= 2 * tol:  # touching or nearly: the reference's own rounding is then too close
+            continue
+        assert r.solver[0] == PLANAR_GAP and r.status[0] == 1, (k, r.solver[0])
+        assert abs(r.distance[0] - ref) <= 0.01 * tol + 1e-12 * (ra + rb), (k, r.distance[0], ref, tol)
+        np.testing.assert_allclose(r.point_b[0] - r.point_a[0], r.distance[0] * r.normal[0], atol=tol)
+        assert abs(residual(Body(A, pa, R), r.point_a[:1])[0]) <= tol, k
+        assert abs(residual(Body(B, pb_, Rb), r.point_b[:1])[0]) <= tol, k
+        checked[facing] += 1
+    assert min(checked) > 50, checked
 
 
 def test_depth_of_nearly_parallel_axes_against_the_reference():

@@ -322,13 +322,17 @@ def test_contact_needs_margin_zero():
         pb.collide(a, a, np.zeros(3), np.eye(3), np.ones(3), np.eye(3), margin=0.1, contact=True)
 
 
-# A known wrong answer (an adversarial review, 2026-11-28), kept so that it cannot be forgotten: the exact
-# gap is 2.5 tol (certified in tests/lab/test_exact_reference.py), but distance's GJK stops 3.2 tol off on
-# this pair (a 2977-gon against an 8-gon 3e5 times its size, given 1.3e8 from its own origin) and the
-# margin query with it. Strict: when it is fixed, this fails until the mark is removed.
-@pytest.mark.xfail(strict=True, reason="known: distance and margin 3.2 tol off on a polygon far from its own origin")
+# An adversarial review's case (2026-11-28): the exact gap is 2.5 tol (certified in
+# tests/lab/test_exact_reference.py) between a 2977-gon and an 8-gon 3e5 times its size, given 1.3e8 from its
+# own origin, with the same rotation. GJK on the box-cut difference stalled 3.2 tol off and the margin query
+# with it; exactly parallel axes now take the end faces' planar distance.
 def test_margin_on_a_polygon_far_from_its_own_origin():
     d = recorded("margin_far_polygon")
     xa, pa, Ra, xb, pb_, Rb = recorded_pair(d)
-    m = (d["gap_over_tol"] + 1.5) * float.fromhex(d["tol"])  # the gap 1.5 tol inside the margin
-    assert pb.collide(pb.Prism(xa), pb.Prism(xb), pa, Ra, pb_, Rb, margin=m).hit[0]
+    tol = float.fromhex(d["tol"])
+    A, B = pb.Prism(xa), pb.Prism(xb)
+    for over, hit in ((-1.5, False), (-0.6, False), (0.6, True), (1.5, True)):  # the margin around the gap
+        m = (d["gap_over_tol"] + over) * tol
+        assert pb.collide(A, B, pa, Ra, pb_, Rb, margin=m).hit[0] == hit, over
+    r = pb.distance(A, B, pa, Ra, pb_, Rb, witness=True)
+    assert abs(r.distance[0] / tol - d["gap_over_tol"]) <= 0.01

@@ -320,13 +320,20 @@ def test_flat_side_at_the_projection_cut_hits(case):
     assert point_in_prism_residual(xb, pb_, Rb, r.contact[0]) <= 2 * tol
 
 
-# A known wrong answer, kept so that it cannot be forgotten (strict: it fails once fixed, until the mark goes):
-# the exact gap is 0.9969 tol (certified in tests/lab/test_exact_reference.py) and collide says miss. The
-# polygons lie 5.5e7 from their own origins, where rounding is about 4 % of this pair's tol, and the kernels
-# accept a gap up to tol itself, with no room for it.
-@pytest.mark.xfail(strict=True, reason="known: a gap of 0.997 tol missed 5.5e7 from the polygons' own origins")
+# The exact gap is 0.9969 tol (certified in tests/lab/test_exact_reference.py); the polygons lie 5.5e7 from
+# their own origins and the positions are as far out. The plain sum forming b's centre from them rounded by
+# 2.5 % of this pair's tol and moved the gap above it: collide, distance and margin said miss.
 def test_gap_just_below_tol_far_from_the_local_origin():
     d = recorded("far_local_origin_just_below_tol")
     xa, pa, Ra, xb, pb_, Rb = recorded_pair(d)
     assert d["gap_over_tol"] < 1.0
-    assert pb.collide(pb.Prism(xa), pb.Prism(xb), pa, Ra, pb_, Rb).hit[0]
+    A, B = pb.Prism(xa), pb.Prism(xb)
+    tol = pair_scale_tolerance(A, B, pa[None], Ra[None], pb_[None], Rb[None])[1][0]
+    assert pb.collide(A, B, pa, Ra, pb_, Rb).hit[0] and pb.collide(A, B, pa, Ra, pb_, Rb, contact=True).hit[0]
+    assert pb.Collider(A, B).collide_pair(pa, Ra, pb_, Rb).hit
+    # distance within 0.01 tol of the exact gap here (the rounding was 0.025 tol), far inside its 10 tol;
+    # the margin query (a hit iff the signed distance is within the margin, to half a tol) either side
+    gap = d["gap_over_tol"] * float.fromhex(d["tol"])
+    assert pb.collide(A, B, pa, Ra, pb_, Rb, margin=gap + 0.6 * tol).hit[0]
+    assert not pb.collide(A, B, pa, Ra, pb_, Rb, margin=gap - 0.6 * tol).hit[0]
+    assert abs(pb.distance(A, B, pa, Ra, pb_, Rb).distance[0] - gap) <= 0.01 * tol

@@ -10,14 +10,16 @@ separation along u between the vertices of a's and b's prisms truncated where (2
 """
 
 import math
+from fractions import Fraction
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 import prismbatch as pb
-from prismbatch._kernels.motion import directional_bounds, reach
+from prismbatch._kernels.motion import directional_bounds, face_rate, reach
+from prismbatch._kernels.planar import extreme_vertex
 
 from reference import rodrigues
 
@@ -198,3 +200,75 @@ def test_reach_bounds_the_axial_coordinates():
             beta_ref, _ = reach_reference(SQUARE, b, pos_a, DOWN, pos_b, rot_b, v, w, 0.1)
             beta = reach(0.1, *pair_terms(SQUARE, b, pos_a, DOWN, pos_b, rot_b, v, w))
             assert beta >= beta_ref * (1.0 - 1e-12)
+
+
+def _cap_max(vx, vy, h, z, drop):
+    """Plain exact reference: the largest z.g over the convex hull of the vertices cut to
+    h.g >= max h.g - drop (rational arithmetic on the float inputs)."""
+    pts = sorted({(Fraction(x), Fraction(y)) for x, y in zip(vx, vy)})
+
+    def turn(o, a, b):
+        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+
+    hull = []
+    for chain in (pts, pts[::-1]):  # Andrew's monotone chain
+        part = []
+        for p in chain:
+            while len(part) >= 2 and turn(part[-2], part[-1], p) <= 0:
+                part.pop()
+            part.append(p)
+        hull += part[:-1]
+    (hx, hy), (zx, zy) = (map(Fraction, h)), (map(Fraction, z))
+    hv = [hx * x + hy * y for x, y in hull]
+    level = max(hv) - Fraction(drop)
+    best = None
+    for i, p in enumerate(hull):
+        q, hp, hq = hull[(i + 1) % len(hull)], hv[i], hv[(i + 1) % len(hull)]
+        points = [p] if hp >= level else []
+        if (hp - level) * (hq - level) < 0:  # the cut crosses this edge
+            t = (level - hp) / (hq - hp)
+            points.append((p[0] + t * (q[0] - p[0]), p[1] + t * (q[1] - p[1])))
+        for x, y in points:
+            best = zx * x + zy * y if best is None else max(best, zx * x + zy * y)
+    return float(best)
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), flat=st.booleans())
+@example(seed=2, flat=True)  # seeds 2, 10 and 20: short by up to the top side's length before the band
+@example(seed=10, flat=True)
+@example(seed=20, flat=True)
+def test_face_rate_bounds_the_cap_against_the_reference(seed, flat):
+    # face_rate must be an upper bound of max z.g over the polygon's cap {h.g >= top - drop}, and a
+    # tight one: at most the cap's cut FACE_BAND r |h| lower. flat: the top side sampled with np.linspace
+    # (straight only up to rounding), turned and moved from its origin, with drop 0 or tiny (a slow turn);
+    # else a random convex polygon and drops across its size.
+    rng = np.random.default_rng(seed)
+    if flat:
+        size, k, height = 10.0 ** rng.uniform(-3, 3), int(rng.integers(3, 120)), rng.uniform(0.3, 1.5)
+        th = rng.uniform(0, 2 * np.pi)
+        turn = np.array([[np.cos(th), -np.sin(th)], [np.sin(th), np.cos(th)]])
+        top = np.column_stack([np.linspace(-1.0, 0.0, k)[::-1], np.zeros(k)])
+        xy = np.vstack([[[-1.3, -height], [0.3, -height]], top]) * size @ turn.T
+        xy = xy + rng.normal(size=2) * size * 10.0 ** rng.uniform(0, 4)
+        h = turn @ [0.0, rng.uniform(0.5, 2.0)]  # normal to the top side
+        z = turn @ [rng.choice([-1.0, 1.0]) * rng.uniform(0.2, 1.0), rng.uniform(-0.3, -0.05)]
+        drops = [0.0, 1e-14 * size, 1e-12 * size]
+    else:
+        ang = np.sort(rng.uniform(0, 2 * np.pi, int(rng.integers(3, 40))))
+        xy = np.column_stack([np.cos(ang), np.sin(ang)]) * rng.uniform(0.5, 2) + rng.normal(size=2)
+        h, z, drops = rng.normal(size=2), rng.normal(size=2), [0.0, 1e-3, 0.1, 1.0, 5.0]
+    try:
+        arrays = pb.PrismSet([xy]).kernel_arrays(np.float64)
+    except ValueError:  # (a refused outline: rarely drawn)
+        return
+    vx, vy, eang, etab, r = arrays.vx, arrays.vy, arrays.edge_angle, arrays.edge_table, arrays.radius[0]
+    n = len(vx)
+    imax = extreme_vertex(vx, vy, eang, etab, 0, n, h[0], h[1])
+    imin = extreme_vertex(vx, vy, eang, etab, 0, n, -h[0], -h[1])
+    band = 2.0**-30 * r * np.hypot(*h)
+    for drop in drops:
+        got = face_rate(vx, vy, eang, etab, 0, n, r, h[0], h[1], imax, imin, drop, z[0], z[1])
+        small = 1e-12 * r * np.hypot(*z)
+        assert got >= _cap_max(vx, vy, h, z, drop) - small, drop
+        assert got <= _cap_max(vx, vy, h, z, max(drop, band) + 2 * band) + small, drop
