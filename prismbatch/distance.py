@@ -60,8 +60,8 @@ SOLVERS = {
     "overlap in the plane (exact)",
     AXES_DEPTH: "other axes pointing the same way, where EPA stopped early (seen on nearly parallel ones): the depth "
     "by the separating-axis theorem over the Minkowski difference's candidate facet normals (exact to rounding)",
-    PLANAR_GAP: "exactly parallel axes pointing the same way, apart: the gap is the end faces' planar distance, by "
-    "2-D GJK to 1e-3 tol",
+    PLANAR_GAP: "exactly parallel axes (either way round), end faces apart in the plane: the gap is their planar "
+    "distance by 2-D GJK to 1e-3 tol, with the axial distance of facing end faces in quadrature",
 }
 
 
