@@ -9,7 +9,9 @@ between two stages is what that step costs per pair:
    (``bench_floor.py``'s loop);
 2. the relative pose: a's end-face centre and b's in world axes, the exact inverse of a's
    rotation, b's position and rotation in a's centred frame, the axes' exact difference;
-3. the pair tolerance (its square roots: ``|c_b - c_a|``, ``|c_a|``, ``|c_b|``);
+3. the pair tolerance (its square roots: ``|c_b - c_a|``, ``|c_a|``, ``|c_b|``), and the test whether
+   c_b - c_a must be summed again in twice the precision (objects far from the origins), as the kernel
+   forms them (``centres_and_tolerance``, before the relative pose);
 4. the radius exit (case 1 proven from b's circumradius and tilt: one more square root);
 5. b's deepest vertex (an extreme-vertex search: bucket lookup and binary search) and the
    vertex exit;
@@ -54,12 +56,12 @@ import numpy as np
 
 import prismbatch as pb
 from prismbatch._kernels.batch import (
+    centres_and_tolerance,
     centres_world,
     collide_pair,
     collide_serial,
     frame_inverse,
     pair_bundle,
-    pair_tolerance,
     relative_pose,
 )
 from prismbatch._kernels.planar import extreme_vertex, point_polygon_distance
@@ -108,7 +110,13 @@ def _staged(stage, A, B, pos_a, rot_a, pos_b, rot_b, rtol, eps, out):
     sb, nb = boff[0], boff[1] - boff[0]
     for i in range(pos_a.shape[0]):
         Pa, Ra, Pb, Rb = pos_a[i], rot_a[i], pos_b[i], rot_b[i]
-        ox, oy, oz, dx, dy, dz = centres_world(acx, acy, bcx, bcy, Pa, Ra, Pb, Rb)
+        if stage == 2:
+            ox, oy, oz, dx, dy, dz = centres_world(acx, acy, bcx, bcy, Pa, Ra, Pb, Rb)
+            tol = 0.0
+        else:  # as the kernel: the tolerance with the centres, before the relative pose
+            ox, oy, oz, dx, dy, dz, tol = centres_and_tolerance(
+                acx, acy, bcx, bcy, Pa, Ra, Pb, Rb, arad[0], brad[0], rtol, 0.0, eps
+            )
         inv = frame_inverse(Ra)
         px, py, pz, r00, r01, r10, r11, r20, r21 = relative_pose(inv, dx, dy, dz, Rb)
         s = 1.0 if Ra[0, 2] * Rb[0, 2] + Ra[1, 2] * Rb[1, 2] + Ra[2, 2] * Rb[2, 2] >= 0.0 else -1.0
@@ -117,11 +125,6 @@ def _staged(stage, A, B, pos_a, rot_a, pos_b, rot_b, rtol, eps, out):
         if stage == 2:
             out[i] = pz + r22 + r00 + r11 > 0.0
             continue
-        cd = math.sqrt(px * px + py * py + pz * pz)
-        base, rounding = pair_tolerance(
-            arad[0], brad[0], cd, ox, oy, oz, dx, dy, dz, acx, acy, bcx, bcy, rtol, 0.0, eps
-        )
-        tol = base + rounding
         if stage == 3:
             out[i] = pz + r22 > tol
             continue

@@ -95,16 +95,15 @@ def pair_margin(P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, margin, rtol, atol, eps, 
         far = lo + FAR_SLACK * (ra + rb + centre_distance)
         if -(pz + rb) > far or (dbx * dx + dby * dy + dbz * dz) - ra > far:
             return False, DECIDED
-    s = 1.0 if dax * dbx + day * dby + daz * dbz >= 0.0 else -1.0
-    if dbx == s * dax and dby == s * day and dbz == s * daz:
+    # D_L as pair_distance builds it.
+    fr, cone, s, (ex, ey, ez) = cut_difference(Ra, Rb, dx, dy, dz, BOX * (ra + rb + centre_distance))
+    if ex == 0.0 and ey == 0.0 and ez == 0.0:
         # exactly parallel axes: apart in the plane, the gap as pair_distance takes it (parallel_gap)
         lower, gap, _, _ = parallel_gap(P, ix, Ra, Rb, ox, oy, oz, dx, dy, dz, SLACK * tol, s)
         if lower > 0.0 and gap <= hi:
             return True, DECIDED
         if lower > lo:
             return False, DECIDED
-    # D_L as pair_distance builds it.
-    fr, cone, _, _ = cut_difference(Ra, Rb, dx, dy, dz, BOX * (ra + rb + centre_distance))
     ux, uy, uz = _first_direction(dx, dy, dz, dax, day, daz, dbx, dby, dbz)
     x, y, z, ia, ib, kc = support(P, ix, fr, cone, ux, uy, uz)
     lower = -(ux * x + uy * y + uz * z) / math.sqrt(ux * ux + uy * uy + uz * uz)  # D_L lies beyond -u

@@ -21,7 +21,7 @@ import math
 
 from .batch import frame_inverse, relative_pose
 from .jit import jit
-from .planar import extreme_vertex
+from .planar import extreme_vertex, segment_closest
 
 
 @jit(inline="always")
@@ -118,14 +118,6 @@ def _planar_support(P, ix, rel, ux, uy):
     return avx[i] - bx, avy[i] - by, avx[i], avy[i], i, j
 
 
-@jit(inline="always")
-def _segment_closest(px, py, qx, qy):
-    """The parameter t in [0, 1] of the point of segment pq nearest the origin."""
-    ex, ey = qx - px, qy - py
-    ee = ex * ex + ey * ey
-    return min(max(-(px * ex + py * ey) / ee, 0.0), 1.0) if ee > 0.0 else 0.0
-
-
 @jit(error_model="numpy")
 def parallel_gap(P, ix, Ra, Rb, ox, oy, oz, dx, dy, dz, acc, s):
     """``(lower, gap, normal, point_a)`` in world coordinates for exactly parallel axes, pointing the same
@@ -170,15 +162,12 @@ def parallel_gap(P, ix, Ra, Rb, ox, oy, oz, dx, dy, dz, acc, s):
                 lower = min(lower, 0.0)
                 break
             # o outside: its nearest point lies on an edge through w, from whichever old point is nearer
-            t0 = _segment_closest(w0x, w0y, wx, wy)
-            t1 = _segment_closest(w1x, w1y, wx, wy)
-            d0x, d0y = w0x + t0 * (wx - w0x), w0y + t0 * (wy - w0y)
-            d1x, d1y = w1x + t1 * (wx - w1x), w1y + t1 * (wy - w1y)
+            d0x, d0y, _ = segment_closest(w0x, w0y, wx, wy)
+            d1x, d1y, _ = segment_closest(w1x, w1y, wx, wy)
             if d1x * d1x + d1y * d1y < d0x * d0x + d0y * d0y:
                 w0x, w0y, a0x, a0y, i0, j0 = w1x, w1y, a1x, a1y, i1, j1
             w1x, w1y, a1x, a1y, i1, j1 = wx, wy, ax, ay, i, j
-        t = _segment_closest(w0x, w0y, w1x, w1y) if k == 2 else 0.0
-        vx, vy = w0x + t * (w1x - w0x), w0y + t * (w1y - w0y)
+        vx, vy, t = segment_closest(w0x, w0y, w1x, w1y) if k == 2 else (w0x, w0y, 0.0)
     # heights: both hold every z >= max(0, p_z) (s = 1), or [0, p_z]; facing end faces apart: a's at 0, b's at p_z
     z, rise = (max(0.0, pz), 0.0) if s > 0.0 else (0.0, min(0.0, pz))
     gap = math.sqrt(vx * vx + vy * vy + rise * rise)

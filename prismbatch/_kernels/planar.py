@@ -325,31 +325,35 @@ def support_spec(vx, vy, eang, etab, s, n, sp, dx, dy):
 
 
 @jit(inline="always")
-def _seg_closest(p, q):
-    """Closest point to the origin on segment [p, q] of simplex entries.
+def segment_closest(px, py, qx, qy):
+    """``(vx, vy, lam)``: the point v of segment [p, q] nearest the origin, v = p + lam (q - p).
 
-    Entries are tuples (wx, wy, dx, dy): the point w = a - b of the Minkowski difference and the
-    direction d its support on B was taken in. Returns (vx, vy, lam) where lam is the weight of q
-    (0 -> p alone, 1 -> q alone).
+    In the interior v is taken along the edge's normal: p + lam (q - p) loses the direction when |v|
+    is tiny against |p| (relative error eps |p| / |v|), and GJK then stalls on long edges; the
+    normal is exact to eps whatever |v|.
     """
-    ex = q[0] - p[0]
-    ey = q[1] - p[1]
+    ex = qx - px
+    ey = qy - py
     ee = ex * ex + ey * ey
     if ee <= 0.0:
-        return p[0], p[1], 0.0
-    lam = -(p[0] * ex + p[1] * ey) / ee
+        return px, py, 0.0
+    lam = -(px * ex + py * ey) / ee
     if lam <= 0.0:
-        return p[0], p[1], 0.0
+        return px, py, 0.0
     if lam >= 1.0:
-        return q[0], q[1], 1.0
-    # Interior: take v along the edge normal. p + lam e loses the direction
-    # when |v| is tiny against |p| (relative error eps |p| / |v|), and GJK
-    # then stalls on long edges; the normal is exact to eps whatever |v|.
+        return qx, qy, 1.0
     inv = 1.0 / math.sqrt(ee)
     nx = -ey * inv
     ny = ex * inv
-    d = p[0] * nx + p[1] * ny
+    d = px * nx + py * ny
     return d * nx, d * ny, lam
+
+
+@jit(inline="always")
+def _seg_closest(p, q):
+    """:func:`segment_closest` of two simplex entries, tuples (wx, wy, dx, dy): the point w = a - b of
+    the Minkowski difference and the direction d its support on B was taken in; lam is q's weight."""
+    return segment_closest(p[0], p[1], q[0], q[1])
 
 
 @jit
