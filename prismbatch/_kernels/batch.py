@@ -21,6 +21,7 @@ from .checks import rotation_problem
 from .jit import first_call, jit, per_dtype
 from .planar import extreme_vertex
 from .projection import CASE_ABOVE, T_P, T_R, T_TOL, pair_test, surely_above, surely_above_by_radius
+from .vec3 import two_product, two_sum
 
 
 @jit(inline="always")
@@ -56,27 +57,6 @@ def pair_tolerance(ra, rb, centre_distance, ox, oy, oz, dx, dy, dz, acx, acy, bc
     far = math.sqrt(ox * ox + oy * oy + oz * oz) + math.sqrt((dx + ox) ** 2 + (dy + oy) ** 2 + (dz + oz) ** 2)
     local = abs(acx) + abs(acy) + abs(bcx) + abs(bcy)
     return atol + rtol * (ra + rb + centre_distance), eps * (4.0 * far + 8.0 * local)
-
-
-@jit(inline="always")
-def two_sum(a, b):
-    """``(s, e)``: s = fl(a + b) and its rounding error, s + e = a + b exactly (Knuth)."""
-    s = a + b
-    t = s - a
-    return s, (a - (s - t)) + (b - t)
-
-
-@jit(inline="always")
-def two_product(a, b):
-    """``(p, e)``: p = fl(a b) and its rounding error, p + e = a b exactly (Dekker's split, no FMA
-    needed; exact for |a|, |b| below 1e290, far above the supported range)."""
-    p = a * b
-    c = 134217729.0 * a  # 2^27 + 1
-    ah = c - (c - a)
-    c = 134217729.0 * b
-    bh = c - (c - b)
-    al, bl = a - ah, b - bh
-    return p, ((ah * bh - p) + ah * bl + al * bh) + al * bl
 
 
 @jit(inline="always")

@@ -35,7 +35,7 @@ from .gjk3d import gjk
 from .jit import jit, twins
 from .minkowski import cut_difference, point_a, support
 from .parallel import parallel_gap, parallel_overlap, tilted_overlap
-from .vec3 import cross, diff, dot, row, sub
+from .vec3 import cross, cross_accurate, diff, dot, row, sub
 
 SEPARATED, TOUCHING, PENETRATING = 1, 0, -1
 #: C_L's box half-width in units of the pair scale S (see the module docstring).
@@ -68,7 +68,8 @@ SEEN_SLACK = 1e-2
 #: GJK stalled on rounding with a gap proven (the gap returned is an upper bound, attained by the witnesses);
 #: the depth of exactly parallel axes pointing the same way, from their end faces in the plane (where EPA
 #: stopped early on them: :mod:`.parallel`); the depth of other axes pointing the same way (nearly parallel:
-#: EPA has only stopped on those) by the separating-axis theorem, where EPA stopped early.
+#: EPA has only stopped on those) by the separating-axis theorem, where EPA stopped early; the gap of exactly
+#: parallel axes, either way, from their end faces' distance in the plane and along the axes (:mod:`.parallel`).
 GJK_GAP, EPA_DEPTH, EPA_STOPPED, FLAT, GJK_STALLED, PLANAR_DEPTH, AXES_DEPTH, PLANAR_GAP = 0, 1, 2, 3, 4, 5, 6, 7
 
 
@@ -137,7 +138,7 @@ def _set_face(V, FV, FN, FG, f, i, j, k):
     """Face f = (V[i], V[j], V[k]), counter-clockwise seen from outside: unit normal and offset."""
     FV[f, 0], FV[f, 1], FV[f, 2] = i, j, k
     u, v = diff(V, j, i), diff(V, k, i)
-    n = cross(u, v)
+    n = cross_accurate(u, v)  # (components exact to rounding: a sliver's plain normal is tilted by eps / sin)
     nn = math.sqrt(dot(n, n))
     FG[f] = nn > 1e-13 * math.sqrt(dot(u, u) * dot(v, v))  # slivers: no trustworthy normal, never expanded
     if nn > 0.0:

@@ -10,7 +10,7 @@ import math
 
 from .jit import jit
 from .minkowski import support
-from .vec3 import cross, diff, dot, row, sub
+from .vec3 import cross, cross_accurate, diff, dot, row, sub
 
 #: Iteration cap of :func:`gjk` (it then reports the distance unresolved and EPA decides).
 GJK_MAX_ITER = 128
@@ -25,11 +25,72 @@ def _foot(a, e):
     return f[0] / ee, f[1] / ee, f[2] / ee
 
 
+#: A triangle whose edges ab, ac meet at a squared sine below this is a sliver: the Voronoi-region
+#: tests of :func:`_triangle` (differences of products of dot products) are then rounding noise, and it
+#: takes the nearest of its plane's foot and its three edges' closest points instead (:func:`_sliver`).
+SLIVER_SIN2 = 1e-8
+
+
+@jit(inline="always")
+def _segment(a, b):
+    """Closest point of segment ab to the origin, and the weight of b."""
+    e = sub(b, a)
+    ee = dot(e, e)
+    t = min(max(-dot(a, e) / ee, 0.0), 1.0) if ee > 0.0 else 0.0
+    return (b if t == 1.0 else (a if t == 0.0 else _foot(a, e))), t
+
+
+@jit(inline="always")
+def _plane_foot(a, b, c, n, nn):
+    """``(p, wa, wb, wc)``: the foot p of the origin on the plane of triangle (a, b, c), n = (b - a) x
+    (c - a) and nn = |n|^2 > 0 given, and the areas (times |n|) it cuts with the edges opposite a, b,
+    c: the foot's weights, all >= 0 where it lies inside. Differences taken at the foot, and products
+    exact to rounding: on a sliver (one far vertex) dot products lose them, and the weights must
+    reproduce the foot for the witnesses."""
+    h = dot(n, a) / nn  # along the normal: exact to rounding of the result
+    p = (h * n[0], h * n[1], h * n[2])
+    wa = dot(n, cross_accurate(sub(b, p), sub(c, p)))
+    wb = dot(n, cross_accurate(sub(c, p), sub(a, p)))
+    wc = dot(n, cross_accurate(sub(a, p), sub(b, p)))
+    return p, wa, wb, wc
+
+
+@jit
+def _sliver(a, b, c, n, nn):
+    """Closest point of triangle (a, b, c) to the origin and its weights, with n = (b - a) x (c - a) from
+    :func:`~.vec3.cross_accurate` and nn = |n|^2: the nearest of the three edges' closest points and the
+    foot on the plane, the foot only where its area weights (:func:`_plane_foot`) put it inside. No region
+    test: each candidate is a point of the triangle to within rounding of its own size, whatever the
+    triangle's shape."""
+    p, t = _segment(a, b)
+    best = dot(p, p)
+    res = p + (1.0 - t, t, 0.0)
+    p, t = _segment(b, c)
+    if dot(p, p) < best:
+        best = dot(p, p)
+        res = p + (0.0, 1.0 - t, t)
+    p, t = _segment(a, c)
+    if dot(p, p) < best:
+        best = dot(p, p)
+        res = p + (1.0 - t, 0.0, t)
+    if nn > 0.0:
+        p, wa, wb, wc = _plane_foot(a, b, c, n, nn)
+        ws = wa + wb + wc
+        if wa >= 0.0 and wb >= 0.0 and wc >= 0.0 and ws > 0.0 and dot(p, p) < best:
+            res = p + (wa / ws, wb / ws, wc / ws)
+    return res
+
+
 @jit
 def _triangle(W, i, j, k):
-    """Closest point of triangle (W[i], W[j], W[k]) to the origin and its three weights (Ericson)."""
+    """Closest point of triangle (W[i], W[j], W[k]) to the origin and its three weights (Ericson; on a
+    sliver, :func:`_sliver`)."""
     a, b, c = row(W, i), row(W, j), row(W, k)
     ab, ac = sub(b, a), sub(c, a)
+    n0 = cross(ab, ac)  # (its size to within eps |ab| |ac|: enough to tell a sliver)
+    if dot(n0, n0) < SLIVER_SIN2 * (dot(ab, ab) * dot(ac, ac)):
+        n = cross_accurate(ab, ac)
+        return _sliver(a, b, c, n, dot(n, n))
     d1, d2 = -dot(ab, a), -dot(ac, a)
     if d1 <= 0.0 and d2 <= 0.0:
         return a + (1.0, 0.0, 0.0)
@@ -51,20 +112,16 @@ def _triangle(W, i, j, k):
     if va <= 0.0 and d4 - d3 >= 0.0 and d5 - d6 >= 0.0:
         t = (d4 - d3) / ((d4 - d3) + (d5 - d6))
         return _foot(b, sub(c, b)) + (0.0, 1.0 - t, t)
-    n = cross(ab, ac)
+    # The normal with its components exact to rounding: the plain cross product tilts it by about
+    # eps / sin(ab, ac) (a sliver of sin 1.6e-8, 2.5e5 long, moved the plane by 2.2 tol).
+    n = cross_accurate(ab, ac)
     nn = dot(n, n)
     if not (va + vb + vc > 0.0 and nn > 0.0):  # degenerate (collinear): its nearest vertex
         da, db, dc = dot(a, a), dot(b, b), dot(c, c)
         if da <= min(db, dc):
             return a + (1.0, 0.0, 0.0)
         return b + (0.0, 1.0, 0.0) if db <= dc else c + (0.0, 0.0, 1.0)
-    h = dot(n, a) / nn  # along the normal: exact to rounding of the result
-    p = (h * n[0], h * n[1], h * n[2])
-    # Weights from the areas the foot cuts, differences taken at the foot: on a sliver (one far vertex)
-    # the dot products above lose them, and the weights must reproduce the foot for the witnesses.
-    wa = dot(n, cross(sub(b, p), sub(c, p)))
-    wb = dot(n, cross(sub(c, p), sub(a, p)))
-    wc = dot(n, cross(sub(a, p), sub(b, p)))
+    p, wa, wb, wc = _plane_foot(a, b, c, n, nn)
     ws = wa + wb + wc
     if not ws > 0.0:
         den = va + vb + vc
@@ -104,11 +161,8 @@ def closest(W, I, lam, m):
         p = row(W, 0)
         lam[0] = 1.0
     elif m == 2:
-        a, e = row(W, 0), diff(W, 1, 0)
-        ee = dot(e, e)
-        t = min(max(-dot(a, e) / ee, 0.0), 1.0) if ee > 0.0 else 0.0
+        p, t = _segment(row(W, 0), row(W, 1))
         lam[0], lam[1] = 1.0 - t, t
-        p = row(W, 1) if t == 1.0 else (a if t == 0.0 else _foot(a, e))
     elif m == 3:
         px, py, pz, lam[0], lam[1], lam[2] = _triangle(W, 0, 1, 2)
         p = (px, py, pz)
@@ -119,7 +173,7 @@ def closest(W, I, lam, m):
         for sweep in range(2):  # the faces the origin is beyond; if none, it is inside: all faces
             for f in range(4):
                 i, j, k, l = _FACES[f]
-                n = cross(diff(W, j, i), diff(W, k, i))
+                n = cross_accurate(diff(W, j, i), diff(W, k, i))  # (as in _triangle: slivers)
                 if sweep == 1 or -dot(n, row(W, i)) * dot(n, diff(W, l, i)) <= 0.0:
                     inside = sweep == 1
                     qx, qy, qz, li, lj, lk = _triangle(W, i, j, k)

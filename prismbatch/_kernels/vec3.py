@@ -1,4 +1,5 @@
-"""Small 3-vector helpers for the distance kernels (tuples and rows of (n, 3) arrays), and the
+"""Small 3-vector helpers for the distance kernels (tuples and rows of (n, 3) arrays), error-free sums and
+products (and a cross product accurate to its own size from them), and the
 exponential of a rotation vector; inlined."""
 
 import math
@@ -10,6 +11,44 @@ from .jit import jit
 def cross(a, b):
     """a x b."""
     return a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]
+
+
+@jit(inline="always")
+def two_sum(a, b):
+    """``(s, e)``: s = fl(a + b) and its rounding error, s + e = a + b exactly (Knuth)."""
+    s = a + b
+    t = s - a
+    return s, (a - (s - t)) + (b - t)
+
+
+@jit(inline="always")
+def two_product(a, b):
+    """``(p, e)``: p = fl(a b) and its rounding error, p + e = a b exactly (Dekker's split, no FMA
+    needed; exact for |a|, |b| below 1e290, far above the supported range)."""
+    p = a * b
+    c = 134217729.0 * a  # 2^27 + 1
+    ah = c - (c - a)
+    c = 134217729.0 * b
+    bh = c - (c - b)
+    al, bl = a - ah, b - bh
+    return p, ((ah * bh - p) + ah * bl + al * bh) + al * bl
+
+
+@jit(inline="always")
+def _det2(a, b, c, d):
+    """a d - b c to within about eps of the result (the products' rounding errors added back), where the
+    plain difference loses eps |a d| to cancellation."""
+    p, e = two_product(a, d)
+    q, f = two_product(b, c)
+    return (p - q) + (e - f)
+
+
+@jit(inline="always")
+def cross_accurate(a, b):
+    """a x b, each component to within about eps of itself: the plain :func:`cross` is off by up to
+    eps |a| |b| per component, which for nearly parallel a, b (a sliver triangle's edges) is a large
+    part of |a x b|, and tilts the normal by eps / sin(a, b)."""
+    return _det2(a[1], a[2], b[1], b[2]), _det2(a[2], a[0], b[2], b[0]), _det2(a[0], a[1], b[0], b[1])
 
 
 @jit(inline="always")
