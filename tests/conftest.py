@@ -7,7 +7,8 @@
 * Tests mirror the package: ``tests/engine`` (what users import) and
   ``tests/lab`` (the research applications). Markers: ``slow`` (whole runs,
   subprocesses, LP references on thousands of pairs), ``needs_fcl``,
-  ``needs_coal``. ``python -m pytest -m "not slow"`` runs the fast tests.
+  ``needs_coal``. ``python -m pytest -m "not slow" tests/engine`` runs the fast engine tests (each
+  kernel against its plain reference on a light set; the slow ones repeat it on more and harder pairs).
 """
 
 from __future__ import annotations

@@ -85,8 +85,15 @@ def test_random_pair_contacts_inside_both_prisms(random_pairs):
     assert max(len(p) for p in d.polys_a + d.polys_b) >= 1000
 
 
-def test_contact_flag_serial_parallel_consistency(random_pairs):
-    d = random_pairs
+@pytest.fixture(scope="module")
+def few_random_pairs():
+    # a fifth of random_pairs: the fast set's pairs (random_pairs takes 5 s to make)
+    rng = np.random.default_rng(31338)
+    return concat_pairs(make_pairs(rng, 300, "facing", "mixed"), make_pairs(rng, 300, "free", "mixed"))
+
+
+def test_contact_flag_serial_parallel_consistency(few_random_pairs):
+    d = few_random_pairs
     sa, sb = pb.PrismSet(d.polys_a), pb.PrismSet(d.polys_b)
     full = pb.collide(sa, sb, *d.args(), contact=True)
     status = pb.collide(sa, sb, *d.args(), contact=False)
@@ -139,7 +146,9 @@ def test_near_touching_contacts():
     assert n_hits >= 0.95 * len(d)
 
 
-@pytest.mark.parametrize("mode", ["generic", "vertex", "edge"])
+@pytest.mark.parametrize(
+    "mode", [pytest.param("generic", marks=pytest.mark.slow), pytest.param("vertex", marks=pytest.mark.slow), "edge"]
+)
 def test_perpendicular_contacts(mode):
     rng = np.random.default_rng({"generic": 1, "vertex": 2, "edge": 3}[mode])
     d = perpendicular_pairs(rng, 400, mode)
@@ -148,8 +157,15 @@ def test_perpendicular_contacts(mode):
     assert n_hits >= 40
 
 
-@pytest.mark.parametrize("relation", ["parallel", "antiparallel"])
-@pytest.mark.parametrize("height", ["coplanar", "random"])
+@pytest.mark.parametrize(
+    "relation, height",
+    [
+        ("parallel", "coplanar"),
+        pytest.param("antiparallel", "coplanar", marks=pytest.mark.slow),
+        pytest.param("parallel", "random", marks=pytest.mark.slow),
+        pytest.param("antiparallel", "random", marks=pytest.mark.slow),
+    ],
+)
 def test_parallel_contacts(relation, height):
     rng = np.random.default_rng({"parallel": 10, "antiparallel": 20}[relation] + (height == "random"))
     d, _ = vertical_pairs(rng, 400, relation, height, with_gap=False)

@@ -112,6 +112,7 @@ def test_small_step_along_detach_direction_reduces_penetration(cls):
     assert after < before - 0.1 * h
 
 
+@pytest.mark.slow  # the full suite; the fast set keeps a lighter test of the same path
 def test_fraction_of_random_colliding_pairs_where_a_step_reduces_penetration():
     rng = np.random.default_rng(2)
     n = 400

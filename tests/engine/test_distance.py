@@ -104,7 +104,7 @@ def check(label, d, pos_b=None, *, coordinate_rounding=False):
 
 
 @pytest.mark.parametrize("pose_set", ["facing", "free"])
-@pytest.mark.parametrize("family", ["small", "medium"])
+@pytest.mark.parametrize("family", ["small", pytest.param("medium", marks=pytest.mark.slow)])
 def test_random_poses_match_the_reference(pose_set, family):
     rng = np.random.default_rng({"facing": 1, "free": 2}[pose_set] * 10 + len(family))
     d = make_pairs(rng, 150, pose_set, family)
@@ -200,6 +200,7 @@ def test_identical_rotation_matrices():
     assert 0.2 < np.mean(ref < 0) < 0.8
 
 
+@pytest.mark.slow  # the full suite; the fast set keeps a lighter test of the same path
 def test_planar_depth_of_parallel_axes_against_the_reference():
     """The planar depth that takes over where EPA stops on exactly parallel, same-way axes, called
     directly on overlapping identical-rotation pairs of random polygons (3 to 3600 vertices): the
@@ -310,6 +311,7 @@ def test_gap_of_exactly_parallel_axes_against_the_reference():
     assert min(checked) > 50, checked
 
 
+@pytest.mark.slow  # the full suite; the fast set keeps a lighter test of the same path
 def test_depth_of_nearly_parallel_axes_against_the_reference():
     """The separating-axis depth that takes over where EPA stops on nearly parallel, same-way axes,
     called directly on tilted pairs (tilts 1e-12 to 0.3 rad, and none) of random, dense nearly
@@ -372,7 +374,9 @@ def _tilted(rng, n, tilt, facing):
     return pairs_from_rows(rows)
 
 
-@pytest.mark.parametrize("tilt", [1e-2, 1e-5, 1e-8, 1e-13, 1e-16])
+@pytest.mark.parametrize(
+    "tilt", [pytest.param(1e-2, marks=pytest.mark.slow), pytest.param(1e-5, marks=pytest.mark.slow), 1e-8, 1e-13, 1e-16]
+)
 @pytest.mark.parametrize("facing", [False, True])
 def test_nearly_parallel_axes(tilt, facing):
     """Axes that (nearly) point the same way meet or pass at about gap / tilt from the end faces: the
@@ -388,6 +392,7 @@ def test_nearly_parallel_axes(tilt, facing):
 # ---------------------------------------------------------------------------
 
 
+@pytest.mark.slow  # the fast set: the small random families and the recorded cases
 @pytest.mark.parametrize("pose_set", ["facing", "free"])
 def test_near_contact(pose_set):
     """Pairs bisected to touching (by collide), then moved in or out by 0.1 to 1e4 tol."""
@@ -418,7 +423,7 @@ def test_tiny_and_huge_objects_far_from_the_origin(size, offset):
     np.testing.assert_allclose(r.distance, size * base.distance, rtol=0, atol=10 * r.tol.max())
 
 
-@pytest.mark.parametrize("shift", [1e2, 1e5, 1e8])
+@pytest.mark.parametrize("shift", [1e2, pytest.param(1e5, marks=pytest.mark.slow), 1e8])
 def test_polygons_far_from_their_own_origin(shift):
     """End faces given far from their prism's local origin (vertices about k, |k| = shift times the size),
     the poses moved so that the bodies stay where they were: the contract against the reference, which

@@ -80,6 +80,7 @@ def check_family(label, d, pos_b=None, *, fractions=FRACTIONS, **kw):
 # ---------------------------------------------------------------------------
 
 
+@pytest.mark.slow  # the fast set: test_near_contact and test_any_margin
 @pytest.mark.parametrize("pose_set", ["facing", "free"])
 def test_random_poses(pose_set):
     rng = np.random.default_rng({"facing": 1, "free": 2}[pose_set])
@@ -87,6 +88,7 @@ def test_random_poses(pose_set):
     check_family(pose_set, d)
 
 
+@pytest.mark.slow  # the fast set: test_near_contact and test_any_margin
 @pytest.mark.parametrize("pose_set", ["facing", "free"])
 def test_pairs_placed_near_the_margin(pose_set):
     """b moved along distance's normal to m +- 0.1 .. 1e3 tol: the decisions right at the margin."""
@@ -133,6 +135,7 @@ def _identical_rotations(rng, n):
     return pairs_from_rows(rows)
 
 
+@pytest.mark.slow  # the full suite; the fast set keeps a lighter test of the same path
 def test_identical_rotations():
     check_family("identical rotations", _identical_rotations(np.random.default_rng(5), 500))
 
@@ -168,6 +171,7 @@ def _lying_on_their_side(rng, n):
     return pairs_from_rows(rows)
 
 
+@pytest.mark.slow  # the full suite; the fast set keeps a lighter test of the same path
 def test_bodies_kept_apart_by_their_end_planes():
     """b moved up or down to m + 0.1 .. 1e3 tol and to m + 1e-5 .. 1e-3 of the size, where the margin
     query's end-plane exit is tight or must leave the pair to GJK."""

@@ -476,6 +476,7 @@ def test_point_polygon_against_reference():
     assert 0.2 * N_CASES <= n_hit <= 0.9 * N_CASES
 
 
+@pytest.mark.slow  # the full suite; the fast set keeps a lighter test of the same path
 def test_point_polygon_vertices_and_edges_exact():
     """Every vertex and edge midpoint of a few polygons is a hit at tol = 0
     up to rounding (signed distance >= -1e-12 r), the signed distance of a

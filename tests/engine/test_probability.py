@@ -113,6 +113,7 @@ def _series_reference(u, terms=40):
     return float(a), float(b)
 
 
+@pytest.mark.slow  # the full suite; the fast set keeps a lighter test of the same path
 def test_rodrigues_coefficients_to_an_ulp_or_two():
     """Both branches (the series up to t = 1, the half-angle sine beyond) against exact sums."""
     rng = np.random.default_rng(3)

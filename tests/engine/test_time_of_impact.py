@@ -377,7 +377,15 @@ def speed_bound(a, b, rot_a, pos_b, rot_b, v, w, horizon):
 
 
 @pytest.mark.parametrize(
-    "kind", ["spin across n", "fast spin about b's axis", "lever", "slide", "side", "nearly parallel"]
+    "kind",
+    [
+        "spin across n",
+        pytest.param("fast spin about b's axis", marks=pytest.mark.slow),  # (2 s each: sampling and bisection)
+        "lever",
+        pytest.param("slide", marks=pytest.mark.slow),
+        "side",
+        "nearly parallel",
+    ],
 )
 def test_adversarial_motions_against_sampling_and_bisection(kind):
     # Each family is built so that the directional bounds are tight: a term left out of them (the turn of u

@@ -14,14 +14,15 @@ from prismbatch.lab import validate as V  # noqa: E402
 
 pytestmark = [pytest.mark.slow, pytest.mark.needs_fcl]
 
-KW = dict(vertices=(5, 12), shapes=("regular", "random"), seed=21, lp_samples=20, progress=False)
+# the distance section: two blocks (256 + 44 pairs)
+KW = dict(vertices=(5, 12), shapes=("regular", "random"), seed=21, lp_samples=20, distance_pairs=300, progress=False)
 N = 4200  # per distribution: two blocks each (4096 + 104), 16,800 pairs
 
 
 def test_local_cluster_matches_in_process():
     pytest.importorskip("distributed")
     local = V.validate(N, chunk_size=100_000, **KW)  # one chunk per distribution
-    dist = V.validate(N, chunk_size=4096, workers=2, **KW)  # one block per chunk, 8 tasks on 2 processes
+    dist = V.validate(N, chunk_size=4096, workers=2, **KW)  # a block a chunk: 8 + 2 tasks, 2 processes
     assert dist.execution["scheduler"] == "dask LocalCluster" and dist.execution["workers"] == 2
     assert dist.execution["numba_threads"] == max(1, (os.cpu_count() or 1) // 2)
     assert local.execution["scheduler"] == "in-process"

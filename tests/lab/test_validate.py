@@ -38,6 +38,7 @@ def short_run():
         seed=11,
         lp_samples=120,
         chunk_size=4096,
+        distance_pairs=0,  # the distance section's own tests: test_validate_distance.py
         progress=False,
     )
 
@@ -140,6 +141,7 @@ def test_results_do_not_depend_on_chunk_size():
         seed=5,
         lp_samples=20,
         fcl=0.3,
+        distance_pairs=300,  # two blocks of the distance section (256 + 44)
         progress=False,
     )
     r1 = V.validate(4200, chunk_size=4096, **kw)  # two blocks: 4096 + 104 pairs
