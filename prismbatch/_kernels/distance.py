@@ -35,7 +35,7 @@ from .gjk3d import gjk
 from .jit import jit, twins
 from .minkowski import cut_difference, point_a, support
 from .parallel import parallel_gap, parallel_overlap, tilted_overlap
-from .vec3 import cross, cross_accurate, diff, dot, row, sub
+from .vec3 import cross, diff, dot, normal, row, sub
 
 SEPARATED, TOUCHING, PENETRATING = 1, 0, -1
 #: C_L's box half-width in units of the pair scale S (see the module docstring).
@@ -138,7 +138,7 @@ def _set_face(V, FV, FN, FG, f, i, j, k):
     """Face f = (V[i], V[j], V[k]), counter-clockwise seen from outside: unit normal and offset."""
     FV[f, 0], FV[f, 1], FV[f, 2] = i, j, k
     u, v = diff(V, j, i), diff(V, k, i)
-    n = cross_accurate(u, v)  # (components exact to rounding: a sliver's plain normal is tilted by eps / sin)
+    n = normal(u, v)  # (on slivers exact to rounding: a plain normal is tilted by eps / sin)
     nn = math.sqrt(dot(n, n))
     FG[f] = nn > 1e-13 * math.sqrt(dot(u, u) * dot(v, v))  # slivers: no trustworthy normal, never expanded
     if nn > 0.0:

@@ -10,7 +10,7 @@ import math
 
 from .jit import jit
 from .minkowski import support
-from .vec3 import cross, cross_accurate, diff, dot, row, sub
+from .vec3 import PLAIN_CROSS_SIN2, cross, cross_accurate, diff, dot, normal, row, sub
 
 #: Iteration cap of :func:`gjk` (it then reports the distance unresolved and EPA decides).
 GJK_MAX_ITER = 128
@@ -41,18 +41,18 @@ def _segment(a, b):
 
 
 @jit(inline="always")
-def _plane_foot(a, b, c, n, nn):
+def _plane_foot(a, b, c, n, nn, accurate):
     """``(p, wa, wb, wc)``: the foot p of the origin on the plane of triangle (a, b, c), n = (b - a) x
     (c - a) and nn = |n|^2 > 0 given, and the areas (times |n|) it cuts with the edges opposite a, b,
     c: the foot's weights, all >= 0 where it lies inside. Differences taken at the foot, and products
     exact to rounding: on a sliver (one far vertex) dot products lose them, and the weights must
-    reproduce the foot for the witnesses."""
+    reproduce the foot for the witnesses. ``accurate``: with :func:`~.vec3.cross_accurate` (slivers)."""
     h = dot(n, a) / nn  # along the normal: exact to rounding of the result
     p = (h * n[0], h * n[1], h * n[2])
-    wa = dot(n, cross_accurate(sub(b, p), sub(c, p)))
-    wb = dot(n, cross_accurate(sub(c, p), sub(a, p)))
-    wc = dot(n, cross_accurate(sub(a, p), sub(b, p)))
-    return p, wa, wb, wc
+    pa, pb, pc = sub(a, p), sub(b, p), sub(c, p)
+    if accurate:
+        return p, dot(n, cross_accurate(pb, pc)), dot(n, cross_accurate(pc, pa)), dot(n, cross_accurate(pa, pb))
+    return p, dot(n, cross(pb, pc)), dot(n, cross(pc, pa)), dot(n, cross(pa, pb))
 
 
 @jit
@@ -74,7 +74,7 @@ def _sliver(a, b, c, n, nn):
         best = dot(p, p)
         res = p + (1.0 - t, 0.0, t)
     if nn > 0.0:
-        p, wa, wb, wc = _plane_foot(a, b, c, n, nn)
+        p, wa, wb, wc = _plane_foot(a, b, c, n, nn, True)
         ws = wa + wb + wc
         if wa >= 0.0 and wb >= 0.0 and wc >= 0.0 and ws > 0.0 and dot(p, p) < best:
             res = p + (wa / ws, wb / ws, wc / ws)
@@ -87,10 +87,12 @@ def _triangle(W, i, j, k):
     sliver, :func:`_sliver`)."""
     a, b, c = row(W, i), row(W, j), row(W, k)
     ab, ac = sub(b, a), sub(c, a)
-    n0 = cross(ab, ac)  # (its size to within eps |ab| |ac|: enough to tell a sliver)
-    if dot(n0, n0) < SLIVER_SIN2 * (dot(ab, ab) * dot(ac, ac)):
+    n = cross(ab, ac)  # (its size to within eps |ab| |ac|: enough to tell a sliver)
+    nn, lim = dot(n, n), dot(ab, ab) * dot(ac, ac)
+    if nn < SLIVER_SIN2 * lim:
         n = cross_accurate(ab, ac)
         return _sliver(a, b, c, n, dot(n, n))
+    accurate = nn < PLAIN_CROSS_SIN2 * lim
     d1, d2 = -dot(ab, a), -dot(ac, a)
     if d1 <= 0.0 and d2 <= 0.0:
         return a + (1.0, 0.0, 0.0)
@@ -112,16 +114,17 @@ def _triangle(W, i, j, k):
     if va <= 0.0 and d4 - d3 >= 0.0 and d5 - d6 >= 0.0:
         t = (d4 - d3) / ((d4 - d3) + (d5 - d6))
         return _foot(b, sub(c, b)) + (0.0, 1.0 - t, t)
-    # The normal with its components exact to rounding: the plain cross product tilts it by about
-    # eps / sin(ab, ac) (a sliver of sin 1.6e-8, 2.5e5 long, moved the plane by 2.2 tol).
-    n = cross_accurate(ab, ac)
-    nn = dot(n, n)
+    # Nearly a sliver, the normal with its components exact to rounding: the plain cross product tilts
+    # it by about eps / sin(ab, ac) (a sliver of sin 1.6e-8, 2.5e5 long, moved the plane by 2.2 tol).
+    if accurate:
+        n = cross_accurate(ab, ac)
+        nn = dot(n, n)
     if not (va + vb + vc > 0.0 and nn > 0.0):  # degenerate (collinear): its nearest vertex
         da, db, dc = dot(a, a), dot(b, b), dot(c, c)
         if da <= min(db, dc):
             return a + (1.0, 0.0, 0.0)
         return b + (0.0, 1.0, 0.0) if db <= dc else c + (0.0, 0.0, 1.0)
-    p, wa, wb, wc = _plane_foot(a, b, c, n, nn)
+    p, wa, wb, wc = _plane_foot(a, b, c, n, nn, accurate)
     ws = wa + wb + wc
     if not ws > 0.0:
         den = va + vb + vc
@@ -173,7 +176,7 @@ def closest(W, I, lam, m):
         for sweep in range(2):  # the faces the origin is beyond; if none, it is inside: all faces
             for f in range(4):
                 i, j, k, l = _FACES[f]
-                n = cross_accurate(diff(W, j, i), diff(W, k, i))  # (as in _triangle: slivers)
+                n = normal(diff(W, j, i), diff(W, k, i))  # (accurate on slivers, as in _triangle)
                 if sweep == 1 or -dot(n, row(W, i)) * dot(n, diff(W, l, i)) <= 0.0:
                     inside = sweep == 1
                     qx, qy, qz, li, lj, lk = _triangle(W, i, j, k)
