@@ -8,9 +8,11 @@ origin uses Ericson's Voronoi-region tests.
 
 import math
 
+import numpy as np
+
 from .jit import jit
 from .minkowski import support
-from .vec3 import PLAIN_CROSS_SIN2, cross, cross_accurate, diff, dot, normal, row, sub
+from .vec3 import cross, cross_accurate, cross_and_sizes, diff, dot, normal, plain_cross_too_tilted, row, sub
 
 #: Iteration cap of :func:`gjk` (it then reports the distance unresolved and EPA decides).
 GJK_MAX_ITER = 128
@@ -87,25 +89,26 @@ def _triangle(W, i, j, k):
     sliver, :func:`_sliver`)."""
     a, b, c = row(W, i), row(W, j), row(W, k)
     ab, ac = sub(b, a), sub(c, a)
-    n = cross(ab, ac)  # (its size to within eps |ab| |ac|: enough to tell a sliver)
-    nn, lim = dot(n, n), dot(ab, ab) * dot(ac, ac)
-    if nn < SLIVER_SIN2 * lim:
-        n = cross_accurate(ab, ac)
-        return _sliver(a, b, c, n, dot(n, n))
-    accurate = nn < PLAIN_CROSS_SIN2 * lim
+    # The vertex regions first: each is two dot products, sound on any shape (a sliver's noise is in the
+    # differences of their products below), and they need no normal.
     d1, d2 = -dot(ab, a), -dot(ac, a)
     if d1 <= 0.0 and d2 <= 0.0:
         return a + (1.0, 0.0, 0.0)
     d3, d4 = -dot(ab, b), -dot(ac, b)
     if d3 >= 0.0 and d4 <= d3:
         return b + (0.0, 1.0, 0.0)
+    d5, d6 = -dot(ab, c), -dot(ac, c)
+    if d6 >= 0.0 and d5 <= d6:
+        return c + (0.0, 0.0, 1.0)
+    n, nn, lim = cross_and_sizes(ab, ac)  # (nn to within eps |ab| |ac|: enough to tell a sliver)
+    if nn < SLIVER_SIN2 * lim:
+        n = cross_accurate(ab, ac)
+        return _sliver(a, b, c, n, dot(n, n))
+    accurate = plain_cross_too_tilted(nn, lim)
     vc = d1 * d4 - d3 * d2
     if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
         t = d1 / (d1 - d3)
         return _foot(a, ab) + (1.0 - t, t, 0.0)
-    d5, d6 = -dot(ab, c), -dot(ac, c)
-    if d6 >= 0.0 and d5 <= d6:
-        return c + (0.0, 0.0, 1.0)
     vb = d5 * d2 - d1 * d6
     if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
         t = d2 / (d2 - d6)
@@ -167,7 +170,8 @@ def closest(W, I, lam, m):
         p, t = _segment(row(W, 0), row(W, 1))
         lam[0], lam[1] = 1.0 - t, t
     elif m == 3:
-        px, py, pz, lam[0], lam[1], lam[2] = _triangle(W, 0, 1, 2)
+        i0 = np.int64(0)  # (not literal indices: they would compile _triangle once more)
+        px, py, pz, lam[0], lam[1], lam[2] = _triangle(W, i0, i0 + 1, i0 + 2)
         p = (px, py, pz)
     else:
         best = math.inf

@@ -59,11 +59,26 @@ PLAIN_CROSS_SIN2 = 1e-6
 
 
 @jit(inline="always")
+def cross_and_sizes(a, b):
+    """``(n, nn, lim)``: the plain n = a x b, nn = |n|^2 and lim = |a|^2 |b|^2; nn / lim is the squared
+    sine of the angle of a and b (to within about eps / sine: enough to tell how parallel they are)."""
+    n = cross(a, b)
+    return n, dot(n, n), dot(a, a) * dot(b, b)
+
+
+@jit(inline="always")
+def plain_cross_too_tilted(nn, lim):
+    """True where the plain product's direction is not good enough for a plane's normal
+    (:data:`PLAIN_CROSS_SIN2`; nn, lim from :func:`cross_and_sizes`)."""
+    return nn < PLAIN_CROSS_SIN2 * lim
+
+
+@jit(inline="always")
 def normal(a, b):
     """a x b as a plane's normal: the plain :func:`cross` where a and b are far enough from parallel
     (:data:`PLAIN_CROSS_SIN2`), :func:`cross_accurate` where not."""
-    n = cross(a, b)
-    if dot(n, n) < PLAIN_CROSS_SIN2 * (dot(a, a) * dot(b, b)):
+    n, nn, lim = cross_and_sizes(a, b)
+    if plain_cross_too_tilted(nn, lim):
         return cross_accurate(a, b)
     return n
 
