@@ -598,7 +598,8 @@ def _collide_pair(bundle, Pa, Ra, Pb, Rb, contact):
         contact[0] = val
         return -problem
     a, b = unpack(a_floats, a_ints), unpack(b_floats, b_ints)
-    hit, case, cx, cy, cz = pair_of_sets(a, b, 0, 0, Pa, Ra, None, Pb, Rb, rtol, atol, eps, True, None)
+    # (np.bool_: a literal True would compile pair_test and its callees once more, for that constant)
+    hit, case, cx, cy, cz = pair_of_sets(a, b, 0, 0, Pa, Ra, None, Pb, Rb, rtol, atol, eps, np.bool_(True), None)
     contact[0], contact[1], contact[2] = cx, cy, cz
     return 2 * case + hit
 

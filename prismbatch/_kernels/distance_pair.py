@@ -34,8 +34,20 @@ def _distance_pair(bundle, Pa, Ra, Pb, Rb, witness):
     P = (avx, avy, aeang, aetab, bvx, bvy, beang, betab)
     ix = (aoff[0], aoff[1] - aoff[0], boff[0], boff[1] - boff[0])
     work = block_of(workspace(1, EPA_ROOM[0]), 0)
+    # The poses copied into C-contiguous, writeable arrays, as the batch passes them: with this kernel's
+    # read-only 'A' arrays pair_distance would compile once more for them (20-30 s of a cold start).
+    pa, pb, ra, rb = (
+        np.empty(3, Pa.dtype),
+        np.empty(3, Pb.dtype),
+        np.empty((3, 3), Ra.dtype),
+        np.empty((3, 3), Rb.dtype),
+    )
+    for i in range(3):
+        pa[i], pb[i] = Pa[i], Pb[i]
+        for j in range(3):
+            ra[i, j], rb[i, j] = Ra[i, j], Rb[i, j]
     d, t, code, n, p = pair_distance_any_room(
-        P, ix, acen[0], bcen[0], arad[0], brad[0], Pa, Ra, Pb, Rb, rtol, atol, eps, witness, work
+        P, ix, acen[0], bcen[0], arad[0], brad[0], pa, ra, pb, rb, rtol, atol, eps, witness, work
     )
     q = (p[0] + d * n[0], p[1] + d * n[1], p[2] + d * n[2])
     return 0, 0.0, d, t, signed_status(d, t), code, n, p, q

@@ -177,7 +177,7 @@ def _fallback_loop(a_floats, a_ints, b_floats, b_ints, poses, margin, rtol, atol
                                     rot_b.shape[0])  # fmt: skip
         work = block_of(workspace(1, EPA_ROOM[0]), 0)
         d = pair_distance_any_room(P, ix, acen[ka], bcen[kb], arad[ka], brad[kb], pos_a[r[0]], rot_a[r[1]],
-                                   pos_b[r[2]], rot_b[r[3]], rtol, atol, eps, False, work)[0]  # fmt: skip
+                                   pos_b[r[2]], rot_b[r[3]], rtol, atol, eps, np.bool_(False), work)[0]  # fmt: skip
         hit_out[i] = d <= margin
 
 

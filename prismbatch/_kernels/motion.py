@@ -253,7 +253,10 @@ def pair_time_of_impact(P, ix, ca, cb, ra, rb, Pa, Ra, Pb0, Rb0, v, w, horizon, 
         for c in range(3):
             Pb[c] = Pb0[c] + v[c] * t
         rotate_by(t * wx, t * wy, t * wz, Rb0, Rb)
-        d, tol, code, n, pa = pair_distance(P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, rtol, atol, eps, True, work)
+        # (np.bool_: with a literal True pair_distance would compile once more, for that constant)
+        d, tol, code, n, pa = pair_distance(
+            P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, rtol, atol, eps, np.bool_(True), work
+        )
         if rerun and code == EPA_STOPPED:
             return t, RERUN, it, d, (nan, nan, nan)
         if d <= tol:
@@ -351,7 +354,7 @@ def _toi_loop(
         ws = (work[0][blk], work[1][blk], block_of(work[2:], blk))
         for i in range(blk * n // blocks, (blk + 1) * n // blocks):
             _one(i, P, aoff, arad, acen, boff, brad, bcen, pos_a, rot_a, pos_b, rot_b, vel, omg, horizon, rtol,
-                 atol, eps, max_iter, ws, True, time_out, status_out, iter_out, dist_out, pos_out, rot_out,
+                 atol, eps, max_iter, ws, np.bool_(True), time_out, status_out, iter_out, dist_out, pos_out, rot_out,
                  contact)  # fmt: skip
 
 
@@ -373,7 +376,7 @@ def _rerun_loop(a_floats, a_ints, b_floats, b_ints, poses, motion, rtol, atol, e
         ws = (np.empty(3), np.empty((3, 3)), block_of(workspace(1, EPA_ROOM[-1]), 0))
         for k in range(blk * m // blocks, (blk + 1) * m // blocks):
             _one(pairs[k], P, aoff, arad, acen, boff, brad, bcen, pos_a, rot_a, pos_b, rot_b, vel, omg, horizon, rtol,
-                 atol, eps, max_iter, ws, False, time_out, status_out, iter_out, dist_out, pos_out, rot_out,
+                 atol, eps, max_iter, ws, np.bool_(False), time_out, status_out, iter_out, dist_out, pos_out, rot_out,
                  contact)  # fmt: skip
 
 

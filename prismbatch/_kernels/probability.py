@@ -258,7 +258,8 @@ def _count_loop(
                 break
             # (a hit is all the estimate needs: no contact point, witness=False)
             Pa, Ra, Pb, Rb = pos_a[t], rot_a[t], pos_b[t], rot_b[t]
-            hit = pair_of_sets(a, b, 0, 0, Pa, Ra, inv_a, Pb, Rb, rtol, atol, eps, False, None)[0]
+            # (np.bool_: a literal False would compile pair_test and its callees once more)
+            hit = pair_of_sets(a, b, 0, 0, Pa, Ra, inv_a, Pb, Rb, rtol, atol, eps, np.bool_(False), None)[0]
             if hit:
                 count += 1
                 # a running shift (the largest log weight) keeps the sums' relative error for tiny weights

@@ -182,15 +182,13 @@ def test_kernels_without_refcounts_keep_no_reference_to_their_arguments():
     assert [sys.getrefcount(x) for x in (*poses, *one, col._a.floats, col._b.ints)] == before
 
 
-def test_kernels_compiled_without_reference_counting_return_no_arrays():
-    # jit compiles without Numba's reference counting unless told otherwise; a function so compiled
-    # that returned an array would hand its caller a reference it does not own (freed too early).
-    # After the main calls (and the helpers Python calls directly), no such overload returns one.
+def _call_every_path():
+    """Call every public path once (batch and one pair, float64): what a user's first session compiles.
+    Returns the kernel dispatchers, ``(module name, name, dispatcher)``, and how many came from the cache."""
     import importlib
     import pkgutil
 
     import numpy as np
-    from numba.core import types
     from numba.core.registry import CPUDispatcher
 
     import prismbatch as pb
@@ -213,26 +211,58 @@ def test_kernels_compiled_without_reference_counting_return_no_arrays():
     col.collision_probability(np.zeros(3), np.diag([1.0, -1, -1]), [0, 0, 0.3], np.eye(3), np.eye(6) * 1e-3, seed=1)
     unpack(col._a.floats, col._a.ints)
     block_of(workspace(1, 4), 0)
+    found, loaded = [], 0
+    for info in pkgutil.iter_modules(kernels.__path__):
+        mod = importlib.import_module(f"prismbatch._kernels.{info.name}")
+        for name, obj in vars(mod).items():
+            if isinstance(obj, CPUDispatcher):
+                found.append((info.name, name, obj))
+                loaded += sum(obj.stats.cache_hits.values())
+    return found, loaded
+
+
+def test_kernels_compiled_without_reference_counting_return_no_arrays():
+    # jit compiles without Numba's reference counting unless told otherwise; a function so compiled
+    # that returned an array would hand its caller a reference it does not own (freed too early).
+    # After the main calls (and the helpers Python calls directly), no such overload returns one.
+    from numba.core import types
 
     def holds_array(t):
         return isinstance(t, types.Array) or (isinstance(t, types.BaseTuple) and any(map(holds_array, t)))
 
-    checked = loaded = 0
-    for info in pkgutil.iter_modules(kernels.__path__):
-        mod = importlib.import_module(f"prismbatch._kernels.{info.name}")
-        for name, obj in vars(mod).items():
-            if not isinstance(obj, CPUDispatcher):
-                continue
-            loaded += sum(obj.stats.cache_hits.values())
-            if obj.targetoptions.get("_nrt", True) is False:
-                for cres in obj.overloads.values():
-                    checked += 1
-                    assert not holds_array(cres.signature.return_type), f"{info.name}.{name} returns arrays"
+    found, loaded = _call_every_path()
+    checked = 0
+    for mod, name, obj in found:
+        if obj.targetoptions.get("_nrt", True) is False:
+            for cres in obj.overloads.values():
+                checked += 1
+                assert not holds_array(cres.signature.return_type), f"{mod}.{name} returns arrays"
     if checked <= 20 and loaded:
         # A kernel loaded from Numba's cache brings its callees compiled in, so they have no overloads
         # to read here: a second run of the suite sees only the kernels Python calls directly.
         pytest.skip(f"{loaded} kernels came from Numba's cache; run with an empty cache to check their callees")
     assert checked > 20
+
+
+#: The heavy callees that every path shares: each compiles once per dtype only if every caller passes
+#: the same types (no constant that Numba types as a literal, no read-only or 'A' layout arrays).
+SHARED_CALLEES = {("distance", "pair_distance"), ("distance", "pair_distance_any_room"), ("gjk3d", "_triangle")}
+
+
+def test_shared_callees_compile_once_per_dtype():
+    # A literal argument (True, 0) or the one-pair kernels' read-only 'A' poses reaching a shared callee
+    # compiles it once more (pair_distance: 20-30 s of a cold start on 2 cores).
+    found, loaded = _call_every_path()
+    sigs = {(mod, name): [str(s) for s in obj.signatures if "float32" not in str(s)] for mod, name, obj in found}
+    missing = sorted(k for k in SHARED_CALLEES if not sigs.get(k))
+    if missing and loaded:
+        # Numba's cache keeps no callee signatures: a callee compiled into a cached kernel shows none.
+        pytest.skip(f"{loaded} kernels came from Numba's cache; run with an empty cache to see {missing}")
+    assert not missing
+    for key in SHARED_CALLEES:
+        assert len(sigs[key]) == 1, f"{key} compiled for {len(sigs[key])} float64 signatures: {sigs[key]}"
+        for bad in ("Literal", "'A'", "True, aligned"):  # (a read-only array prints as "..., True, aligned=True)")
+            assert bad not in sigs[key][0], f"{key}: {sigs[key][0]}"
 
 
 def test_the_pair_bundle_holds_both_prisms_and_the_scalars():
