@@ -346,7 +346,10 @@ def _noise_factor(cov, name, n):
         )
     lam = np.where(lam > _EIG_RTOL * top[:, None], lam, 0.0)
     L = scale[:, :, None] * V * np.sqrt(lam)[:, None, :]
-    return np.ascontiguousarray(np.broadcast_to(L, (n, 6, 6)))
+    if L.shape[0] != n:
+        L = np.broadcast_to(L, (n, 6, 6))
+    # Writeable (a broadcast view is read-only, and Numba compiles the sampling loops again for that)
+    return np.require(L, requirements=("C", "W"))
 
 
 def _rotation_free(cov):
