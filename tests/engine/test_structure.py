@@ -246,7 +246,12 @@ def test_kernels_compiled_without_reference_counting_return_no_arrays():
 
 #: The heavy callees that every path shares: each compiles once per dtype only if every caller passes
 #: the same types (no constant that Numba types as a literal, no read-only or 'A' layout arrays).
-SHARED_CALLEES = {("distance", "pair_distance"), ("distance", "pair_distance_any_room"), ("gjk3d", "_triangle")}
+SHARED_CALLEES = {
+    ("distance", "pair_distance"),
+    ("distance", "pair_distance_any_room"),
+    ("gjk3d", "_triangle"),
+    ("motion", "pair_time_of_impact"),
+}
 
 
 def test_shared_callees_compile_once_per_dtype():
