@@ -102,13 +102,31 @@ def poses_ok(pos_a, rot_a, pos_b, rot_b, limit, tol):
     """Whether every position coordinate is within ``limit`` (NaN is not) and every rotation is one
     :func:`_rotation_ok` accepts, in one serial pass over (N, 3) and (N, 3, 3) arrays: the check of a
     small batch whose arrays the kernels take as they are (the NumPy checks cost tens of µs a call).
-    Only a yes or no: on no, the NumPy checks run and name the first bad input."""
-    ok = True
-    for P in (pos_a, pos_b):
-        for i in range(P.shape[0]):
-            for j in range(3):
-                ok &= abs(np.float64(P[i, j])) <= limit
-    for R in (rot_a, rot_b):
-        for i in range(R.shape[0]):
-            ok &= _rotation_ok(R[i], tol)
-    return ok
+    Only a yes or no: on no, the NumPy checks run and name the first bad input.
+
+    Each array's loop returns at its first failure: accumulated with ``ok &=`` instead, the rotations'
+    loop took 39 ns a pair against 9.6 (200,000 facing pairs in cache, one thread, 2026-11-28).
+    """
+    return (
+        _positions_ok(pos_a, limit)
+        and _positions_ok(pos_b, limit)
+        and _rotations_ok(rot_a, tol)
+        and _rotations_ok(rot_b, tol)
+    )
+
+
+@jit(inline="always")
+def _positions_ok(P, limit):
+    for i in range(P.shape[0]):
+        for j in range(3):
+            if not abs(np.float64(P[i, j])) <= limit:
+                return False
+    return True
+
+
+@jit(inline="always")
+def _rotations_ok(R, tol):
+    for i in range(R.shape[0]):
+        if not _rotation_ok(R[i], tol):
+            return False
+    return True
