@@ -22,6 +22,7 @@ import math
 
 from .jit import jit
 from .planar import extreme_vertex, gjk, point_polygon_distance
+from .vec3 import length2
 
 # Case numbers. 1-9 are the paper's; 10 and 11 extend it to d_a.d_b > 0.
 CASE_ABOVE = 1
@@ -235,8 +236,8 @@ def pair_test(
     if surely_above(bvx, bvy, sb, imax, pz, hx, hy, c, tol):  # d3 < -tol and c <= 0
         _done(trace, 1, CASE_ABOVE, False)
         return False, CASE_ABOVE, nan, nan, nan  # the common case: leave at once
-    pr = math.hypot(px, py)
-    wn = math.hypot(r02, r12)
+    pr = length2(px, py)
+    wn = length2(r02, r12)
     T = (pr + ra + rb + 2.0 * tol) / max(wn, 1e-150)
     # Perpendicular within reach: b's axis changes height by at most tol/4
     # over T. Then c is taken as 0 and the height relaxation widened by

@@ -1,5 +1,6 @@
-"""The 3-D GJK's closest-point step (prismbatch._kernels.gjk3d.closest) and the accurate cross product
-(prismbatch._kernels.vec3.cross_accurate) against exact rational references written here.
+"""The 3-D GJK's closest-point step (prismbatch._kernels.gjk3d.closest), the accurate cross product
+(prismbatch._kernels.vec3.cross_accurate) and the 2-vector length (vec3.length2) against exact rational
+references written here.
 
 Slivers are the hard case: a triangle 2.5e5 long and 4e-3 high (its edges at a sine of 1.6e-8), from
 GJK on two prisms whose axes are 3e-14 rad apart, had its plane moved by 2.2 tol by a plain cross
@@ -15,7 +16,7 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from prismbatch._kernels.gjk3d import closest
-from prismbatch._kernels.vec3 import PLAIN_CROSS_SIN2, cross_accurate
+from prismbatch._kernels.vec3 import PLAIN_CROSS_SIN2, cross_accurate, length2
 
 EPS = np.finfo(np.float64).eps
 
@@ -117,3 +118,51 @@ def test_cross_accurate_is_exact_to_its_own_size(seed, log_angle, log_size):
     size = np.linalg.norm(a) * np.linalg.norm(b)
     for g, w in zip(got, want):
         assert abs(Fraction(g) - w) <= 2 * EPS * abs(w) + 4 * EPS**2 * Fraction(size), (g, float(w))
+
+
+_LENGTH_CASES = [
+    (0.0, 0.0),
+    (3.0, 4.0),
+    (1e-160, 2e-161),  # squares below the smallest normal
+    (1e-155, 0.0),
+    (1e200, 1e199),  # squares overflow
+    (5e-324, 0.0),
+    (1e-15, 1e-200),  # one square underflows, far below an ulp of the other
+]
+
+
+@settings(max_examples=400, deadline=None)
+@given(
+    mx=st.floats(1, 2),
+    my=st.floats(-2, 2),
+    ex=st.integers(-1100, 1022),
+    ey=st.integers(-1100, 1022),
+    single=st.booleans(),
+)
+@example(mx=1.0, my=1.0, ex=-532, ey=-535, single=False)  # both squares underflow: hypot's side
+@example(mx=1.0, my=1.0, ex=-63, ey=-83, single=True)  # float32 squares near its smallest normal
+@example(mx=1.0, my=1.0, ex=64, ey=0, single=True)  # a float32 square that would overflow
+def test_length2_is_within_an_ulp_or_two_of_the_exact_length(mx, my, ex, ey, single):
+    # |got - |(x, y)|| <= 2 eps |(x, y)| (plus the spacing of subnormal results), judged in rationals: the
+    # square of got widened by that much brackets x^2 + y^2.
+    # Inputs from far below the smallest normal to far above where squares overflow, both dtypes.
+    dt = np.float32 if single else np.float64
+    with np.errstate(over="ignore", under="ignore"):
+        x, y = dt(math.ldexp(mx, ex)), dt(math.ldexp(my, ey))
+    if not (np.isfinite(x) and np.isfinite(y)):
+        return
+    got = length2(x, y)
+    eps = float(np.finfo(dt).eps)
+    want2 = Fraction(float(x)) ** 2 + Fraction(float(y)) ** 2
+    if want2 == 0:
+        assert got == 0.0
+        return
+    g, tiny = Fraction(float(got)), Fraction(float(np.finfo(dt).smallest_subnormal))  # (a subnormal result's spacing)
+    lo, hi = max(g * (1 - Fraction(2 * eps)) - tiny, Fraction(0)), g * (1 + Fraction(2 * eps)) + tiny
+    assert lo**2 <= want2 <= hi**2, (x, y, got)
+
+
+def test_length2_matches_hypot_on_edge_values():
+    for x, y in _LENGTH_CASES:
+        assert math.isclose(length2(x, y), math.hypot(x, y), rel_tol=4e-16, abs_tol=0.0), (x, y)
+    assert math.isnan(length2(math.nan, 1.0)) and length2(math.inf, 1.0) == math.inf
