@@ -81,6 +81,13 @@ def jit(func=None, *, refcounts=False, **options):
     fails to compile ("NRT required but not enabled"); one that returned an
     array would hand its caller a reference it does not own, so none does
     (a test checks the compiled signatures).
+
+    A kernel that several paths call is compiled once per signature, and Numba
+    types a constant argument (``True``, ``False``, ``0``) as a literal: each
+    such call site compiled the callee and everything it calls once more. Pass
+    constants to shared kernels as ``np.bool_(...)`` / ``np.int64(...)``, and
+    arrays in the layout the batch kernels pass (C-contiguous, writeable);
+    ``tests/engine/test_structure.py`` checks the shared callees' signatures.
     """
     if not refcounts:
         options["_nrt"] = False
