@@ -159,8 +159,8 @@ def _compile_notice():
         return
     _notice["shown"] = True
     print(
-        "prismbatch: compiling the collision kernels for this process's first call (once; 10 to 30 s on a "
-        "2-core machine; later runs load them from Numba's cache)",
+        "prismbatch: compiling the collision kernels for this process's first call (once; about 7 to 30 s on a "
+        "2-core machine, by path and load; later runs load them from Numba's cache)",
         file=sys.stderr,
         flush=True,
     )
