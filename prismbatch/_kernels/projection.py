@@ -113,7 +113,7 @@ T_GJK_HIT, T_GJK_IT, T_CASE, T_HIT = _T["gjk_hit"], _T["gjk_iterations"], _T["ca
 #: Where pair_test decided (trace field "exit").
 EXITS = {
     1: "Δ3 < -tol and d_a.d_b <= 0: b's end face beyond a's plane and its body leaves it (no collision)",
-    2: "Δ3 < -tol and d_a.d_b <= 0 after the perpendicular snap (no collision)",
+    2: "Δ3 < -tol (-tol - drift when perpendicular) and d_a.d_b <= 0 after the perpendicular snap (no collision)",
     3: "the projection of b within reach of P_a is empty (no collision)",
     4: "coarse test: b's projected axis passes P_a at more than R_a + R_b + tol (no collision)",
     5: "coarse test: b's projection lies beyond P_a along the projected axis (no collision)",
@@ -256,7 +256,9 @@ def pair_test(
         trace[T_TZ] = tz
 
     # --- classification (labels; the decision below is one exact path) ---
-    if d3 < -tol:
+    # Below -tz, not -tol: where the snap took c as 0, b's body may still rise by up to the drift within
+    # reach, so a Δ3 between -tz and -tol can leave a gap under tol (0.906 tol was missed here).
+    if d3 < -tz:
         if ceff <= 0.0:
             _done(trace, 2, CASE_ABOVE, False)
             return False, CASE_ABOVE, nan, nan, nan

@@ -284,6 +284,28 @@ def test_tiny_objects_far_from_the_origin_within_tol_hit():
         assert pb.Collider(A, B).collide_pair(pa, ra, pb_, rb).hit
 
 
+def test_perpendicular_snap_keeps_gaps_under_tol():
+    # Certified gaps of 0.906-0.998 tol that the first exit of pair_test missed: after the snap takes b's
+    # axis as level, b may still rise by the drift within reach, so the exit must compare with -(tol + drift).
+    doc = recorded("perpendicular_snap_within_tol")
+    assert len(doc["pairs"]) == 18
+    for rec in doc["pairs"]:
+        xa, pa, ra, xb, pb_, rb = recorded_pair(rec)
+        tol = float.fromhex(rec["tol"])
+        assert rec["exact"]["verdict"] == "hit" and rec["exact"]["gap_over_tol"] < 0.999
+        A, B = pb.Prism(xa), pb.Prism(xb)
+        assert pair_scale_tolerance(A, B, pa[None], ra[None], pb_[None], rb[None])[1][0] == tol
+        assert pb.collide(A, B, pa, ra, pb_, rb).hit[0], rec["source"]
+        assert pb.Collider(A, B).collide_pair(pa, ra, pb_, rb).hit, rec["source"]
+    # the two deepest certified again here, in rational arithmetic
+    from prismbatch.lab.exact_gap import judge_pair
+
+    for rec in doc["pairs"][:2]:
+        xa, pa, ra, xb, pb_, rb = recorded_pair(rec)
+        j = judge_pair(xa, pa, ra, xb, pb_, rb, float.fromhex(rec["tol"]))
+        assert j.verdict == "hit" and j.gap2_hi <= (0.95 * float.fromhex(rec["tol"])) ** 2
+
+
 def test_end_faces_far_from_their_local_origin():
     """Polygons given 1e8-1e10 from their own origin, placed near the world origin: every answer and
     contact within the tolerance contract, judged exactly (the tolerance counts that rounding now)."""
