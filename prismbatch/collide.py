@@ -321,7 +321,8 @@ class Collider(OnePairQueries):
         -------
         dict
             Every field of ``prismbatch._kernels.projection.TRACE_FIELDS`` (a's centred
-            frame: b's position ``p`` and rotation ``R``, the tolerance, Δ3,
+            frame: b's position ``p`` and rotation ``R``, the pair's tolerance (the test decides at it
+            plus the rounding allowance), Δ3,
             the reach, the coarse-test quantities, the early-accept depth, the
             GJK outcome, ...; NaN where the test never got there), plus
             ``exit_reason`` (text), ``hit``, ``case`` and ``contact`` (world).
@@ -418,8 +419,10 @@ def collide(
         ``atol + rtol * (R_a + R_b + |c_b - c_a|) + 4 eps (|c_a| + |c_b|) + 8 eps (|k_a|_1 + |k_b|_1)``
         (R: end-face radii, c: end-face centres in world coordinates, k: the same in the
         prisms' local frames, eps: machine epsilon of ``dtype``). Bodies within it count as
-        colliding; a reported hit means the bodies are within sqrt(2) times it
-        (2 times it for axes perpendicular within tol/4 over a's reach).
+        colliding; a reported hit means the bodies are within sqrt(2) (tol + rho) of each
+        other (1.8 (tol + rho) for axes perpendicular within tol/4 over a's reach), where
+        ``rho = 4 eps (R_a + R_b + |c_b - c_a|_1)`` is the rounding allowance the test is
+        decided with (:data:`~prismbatch.config.ROUNDING_ALLOWANCE`).
     dtype : {numpy.float64, numpy.float32}, optional
         Precision of the stored shapes and poses (float32 halves memory
         traffic; its default rtol is 1e-5).

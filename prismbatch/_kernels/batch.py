@@ -17,6 +17,7 @@ import numba
 import numpy as np
 from numba import prange
 
+from ..config import ROUNDING_ALLOWANCE
 from .checks import rotation_problem
 from .jit import first_call, jit, per_dtype
 from .planar import extreme_vertex
@@ -215,11 +216,13 @@ def pair_world(
     sb = boff[kb]
     nb = boff[kb + 1] - sb
     if trace is not None:
-        trace[T_TOL] = tol
+        trace[T_TOL] = tol  # the pair's tolerance, as geometry.pair_scale_tolerance gives it
         for j, v in enumerate((px, py, pz)):
             trace[T_P + j] = v
         for j, v in enumerate((r00, r01, r02, r10, r11, r12, r20, r21, r22)):
             trace[T_R + j] = v
+    # Decided at tol plus the rounding of what follows (config.ROUNDING_ALLOWANCE; |d|_1 >= |d|, no root).
+    tol += ROUNDING_ALLOWANCE * eps * (ra + rb + abs(dx) + abs(dy) + abs(dz))
     if trace is None and surely_above_by_radius(pz, r20, r21, r22, rb, tol):  # the exit below, sooner
         return False, CASE_ABOVE, math.nan, math.nan, math.nan
     imax = extreme_vertex(bvx, bvy, beang, betab, sb, nb, r20, r21)  # b's vertex deepest into a

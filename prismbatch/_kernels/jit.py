@@ -29,10 +29,12 @@ def cache_enabled():
 
 @functools.cache
 def kernel_sources():
-    """A digest of every kernel module's source (this folder's ``*.py``), part of every cached kernel's
-    key (:class:`_SourcesKeyedCache`); read once, at the first load from or save to the cache."""
+    """A digest of every kernel module's source (this folder's ``*.py``) and of ``config.py`` (whose
+    constants the kernels compile in), part of every cached kernel's key (:class:`_SourcesKeyedCache`);
+    read once, at the first load from or save to the cache."""
     h = hashlib.sha256()
-    for path in sorted(Path(__file__).resolve().parent.glob("*.py")):
+    here = Path(__file__).resolve().parent
+    for path in [*sorted(here.glob("*.py")), here.parent / "config.py"]:
         h.update(path.name.encode())
         h.update(path.read_bytes())
     return h.hexdigest()[:16]

@@ -306,6 +306,29 @@ def test_perpendicular_snap_keeps_gaps_under_tol():
         assert j.verdict == "hit" and j.gap2_hi <= (0.95 * float.fromhex(rec["tol"])) ** 2
 
 
+def test_rounding_allowance_keeps_gaps_just_under_tol():
+    # Certified gaps of 1 - 2.3e-7 .. 1 - 8e-8 tol that collide missed: the rounding of the relative pose and
+    # of the computed gaps (about eps S) lifted them above tol. collide decides at tol + rho now.
+    doc = recorded("threshold_rounding_within_tol")
+    assert len(doc["pairs"]) == 24
+    for rec in doc["pairs"]:
+        xa, pa, ra, xb, pb_, rb = recorded_pair(rec)
+        tol = float.fromhex(rec["tol"])
+        assert rec["exact"]["verdict"] == "hit" and rec["exact"]["gap_over_tol"] > 1 - 3e-7
+        A, B = pb.Prism(xa), pb.Prism(xb)
+        assert pair_scale_tolerance(A, B, pa[None], ra[None], pb_[None], rb[None])[1][0] == tol
+        assert pb.collide(A, B, pa, ra, pb_, rb).hit[0], rec["source"]
+        assert pb.Collider(A, B).collide_pair(pa, ra, pb_, rb).hit, rec["source"]
+    # the one deepest under tol certified again here, in rational arithmetic
+    from prismbatch.lab.exact_gap import judge_pair
+
+    rec = min(doc["pairs"], key=lambda r: r["exact"]["gap_over_tol"])
+    xa, pa, ra, xb, pb_, rb = recorded_pair(rec)
+    tol = float.fromhex(rec["tol"])
+    j = judge_pair(xa, pa, ra, xb, pb_, rb, tol)
+    assert j.verdict == "hit" and j.gap2_hi <= tol**2
+
+
 def test_end_faces_far_from_their_local_origin():
     """Polygons given 1e8-1e10 from their own origin, placed near the world origin: every answer and
     contact within the tolerance contract, judged exactly (the tolerance counts that rounding now)."""

@@ -97,6 +97,12 @@ def test_a_cached_kernel_recompiles_when_a_kernel_it_calls_changes(tmp_path):
     vec3.write_text(src.replace("return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]", "return a[0] * b[0] + a[1] * b[1]"))
     changed, hits = run()
     assert hits == 0 and changed != first  # compiled anew, with the new dot
+    assert run() == (changed, 1)
+    # config.py's constants are compiled into kernels (ROUNDING_ALLOWANCE into the collide loop): an edit
+    # there compiles anew too
+    config = pkg / "prismbatch" / "config.py"
+    config.write_text(config.read_text() + "\n# edited\n")
+    assert run() == (changed, 0)
 
 
 def test_a_slow_first_call_prints_one_compile_notice(capsys, monkeypatch):
