@@ -284,19 +284,25 @@ def test_tiny_objects_far_from_the_origin_within_tol_hit():
         assert pb.Collider(A, B).collide_pair(pa, ra, pb_, rb).hit
 
 
+def _assert_recorded_certified_hits(doc):
+    """Each recorded pair (certified "hit" in rational arithmetic, at the tol recorded, which is the pair's
+    tolerance) is a hit of collide and of collide_pair."""
+    for rec in doc["pairs"]:
+        xa, pa, ra, xb, pb_, rb = recorded_pair(rec)
+        assert rec["exact"]["verdict"] == "hit"
+        A, B = pb.Prism(xa), pb.Prism(xb)
+        assert pair_scale_tolerance(A, B, pa[None], ra[None], pb_[None], rb[None])[1][0] == float.fromhex(rec["tol"])
+        assert pb.collide(A, B, pa, ra, pb_, rb).hit[0], rec["source"]
+        assert pb.Collider(A, B).collide_pair(pa, ra, pb_, rb).hit, rec["source"]
+
+
 def test_perpendicular_snap_keeps_gaps_under_tol():
     # Certified gaps of 0.906-0.998 tol that the first exit of pair_test missed: after the snap takes b's
     # axis as level, b may still rise by the drift within reach, so the exit must compare with -(tol + drift).
     doc = recorded("perpendicular_snap_within_tol")
     assert len(doc["pairs"]) == 18
-    for rec in doc["pairs"]:
-        xa, pa, ra, xb, pb_, rb = recorded_pair(rec)
-        tol = float.fromhex(rec["tol"])
-        assert rec["exact"]["verdict"] == "hit" and rec["exact"]["gap_over_tol"] < 0.999
-        A, B = pb.Prism(xa), pb.Prism(xb)
-        assert pair_scale_tolerance(A, B, pa[None], ra[None], pb_[None], rb[None])[1][0] == tol
-        assert pb.collide(A, B, pa, ra, pb_, rb).hit[0], rec["source"]
-        assert pb.Collider(A, B).collide_pair(pa, ra, pb_, rb).hit, rec["source"]
+    assert all(rec["exact"]["gap_over_tol"] < 0.999 for rec in doc["pairs"])
+    _assert_recorded_certified_hits(doc)
     # the two deepest certified again here, in rational arithmetic
     from prismbatch.lab.exact_gap import judge_pair
 
@@ -311,14 +317,8 @@ def test_rounding_allowance_keeps_gaps_just_under_tol():
     # of the computed gaps (about eps S) lifted them above tol. collide decides at tol + rho now.
     doc = recorded("threshold_rounding_within_tol")
     assert len(doc["pairs"]) == 24
-    for rec in doc["pairs"]:
-        xa, pa, ra, xb, pb_, rb = recorded_pair(rec)
-        tol = float.fromhex(rec["tol"])
-        assert rec["exact"]["verdict"] == "hit" and rec["exact"]["gap_over_tol"] > 1 - 3e-7
-        A, B = pb.Prism(xa), pb.Prism(xb)
-        assert pair_scale_tolerance(A, B, pa[None], ra[None], pb_[None], rb[None])[1][0] == tol
-        assert pb.collide(A, B, pa, ra, pb_, rb).hit[0], rec["source"]
-        assert pb.Collider(A, B).collide_pair(pa, ra, pb_, rb).hit, rec["source"]
+    assert all(rec["exact"]["gap_over_tol"] > 1 - 3e-7 for rec in doc["pairs"])
+    _assert_recorded_certified_hits(doc)
     # the one deepest under tol certified again here, in rational arithmetic
     from prismbatch.lab.exact_gap import judge_pair
 
