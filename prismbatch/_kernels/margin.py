@@ -95,6 +95,15 @@ def pair_margin(P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, margin, rtol, atol, eps, 
         far = lo + FAR_SLACK * (ra + rb + centre_distance)
         if -(pz + rb) > far or (dbx * dx + dby * dy + dbz * dz) - ra > far:
             return False, DECIDED
+        # The same for the first direction u, by the end faces' radii: D's support there is at most
+        # -u.d + (ra + rb) |u| (the cone's part is 0 where u.d_a <= 0 <= u.d_b; with the axes apart, each
+        # point of the cut cone is s d_a - t d_b with s, t <= 2 L, which bounds what rounding leaves of it).
+        ux, uy, uz = _first_direction(dx, dy, dz, dax, day, daz, dbx, dby, dbz)
+        un = math.sqrt(ux * ux + uy * uy + uz * uz)
+        cone = 2.0 * BOX * (ra + rb + centre_distance)
+        cone *= max(ux * dax + uy * day + uz * daz, 0.0) + max(-(ux * dbx + uy * dby + uz * dbz), 0.0)
+        if (ux * dx + uy * dy + uz * dz - cone) / un - (ra + rb) > far:
+            return False, DECIDED
     # D_L as pair_distance builds it.
     fr, cone, s, (ex, ey, ez) = cut_difference(Ra, Rb, dx, dy, dz, BOX * (ra + rb + centre_distance))
     if ex == 0.0 and ey == 0.0 and ez == 0.0:
