@@ -13,8 +13,9 @@ of m that d lies on, so GJK stops as soon as
 * the lower bound exceeds m - tol / 2: a miss (d > m - tol / 2);
 
 one of which holds once the bounds are tol apart: GJK runs to tol, not to the
-1e-3 tol of the distance. A pair whose end planes keep the bodies apart (neither
-axis pointing over the other's end face) stops before GJK; a pair far from the
+1e-3 tol of the distance. A pair whose axes point apart stops before GJK where its
+end planes, or the end faces' radii seen along GJK's first direction, keep the bodies
+apart by more than the margin; a pair far from the
 margin stops after one or two supports (the first one, towards b's centre turned
 into a direction where D's support is finite, is already a plane); where it is not, b's centre inside a
 settles a deep overlap without GJK. A pair whose GJK stops without settling
