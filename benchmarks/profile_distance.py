@@ -3,7 +3,7 @@
 
 The pairs are ``bench_distance.py``'s (regular n-gons of circumradius 2 and 2.5, the paper's
 facing poses, b moved along prismbatch's witness normal to each bucket's signed distance). For
-each bucket, one thread, medians of 7:
+each bucket, one thread, medians of 7 interleaved passes:
 
 * GJK's iterations (mean and largest) and its time per pair: a compiled loop that forms each
   pair's cut Minkowski difference as ``pair_distance`` does and runs a copy of GJK whose only
@@ -23,7 +23,6 @@ from __future__ import annotations
 import argparse
 import inspect
 import math
-import time
 from pathlib import Path
 
 import numpy as np
@@ -36,6 +35,7 @@ from prismbatch._kernels.jit import jit
 from prismbatch._kernels.minkowski import cut_difference
 from prismbatch.config import DEFAULT_RTOL
 from prismbatch.lab.report import run_metadata, write_json, write_text
+from prismbatch.lab.timing import stats, timed_loops
 from prismbatch.lab.validate.distance import DISTANCE_BUCKETS, place
 from prismbatch.sampling import facing_poses
 from prismbatch.shapes import as_prism_set
@@ -91,15 +91,6 @@ def _loop(P, aoff, arad, acen, boff, brad, bcen, pos_a, rot_a, pos_b, rot_b, rto
     return to_epa
 
 
-def _median_s(f, repeats):
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        f()
-        times.append(time.perf_counter() - t0)
-    return float(np.median(times))
-
-
 def bucket_rows(n_vertices, n_pairs, repeats, rng):
     a, b = pb.Prism.regular(n_vertices, RADIUS_A), pb.Prism.regular(n_vertices, RADIUS_B)
     A, B = (as_prism_set(s, name)[0].kernel_arrays() for s, name in ((a, "a"), (b, "b")))
@@ -114,9 +105,14 @@ def bucket_rows(n_vertices, n_pairs, repeats, rng):
         iters = np.zeros((n, 2), np.int64)
         args = (P, A.offsets, A.radius, A.centre, B.offsets, B.radius, B.centre, *pairs, rtol, eps)
         n_epa = _loop(*args, True, iters)  # (compiles; the counts are the same on every run)
-        gjk_s = _median_s(lambda args=args: _loop(*args, False, np.zeros((n, 2), np.int64)), repeats)
-        both_s = _median_s(lambda args=args: _loop(*args, True, np.zeros((n, 2), np.int64)), repeats)
-        whole_s = _median_s(lambda pairs=pairs: pb.distance(a, b, *pairs, parallel=False), repeats)
+        scratch = np.zeros((n, 2), np.int64)
+        calls = {  # interleaved: their differences share the machine's state
+            "gjk": lambda args=args: _loop(*args, False, scratch),
+            "both": lambda args=args: _loop(*args, True, scratch),
+            "whole": lambda pairs=pairs: pb.distance(a, b, *pairs, parallel=False),
+        }
+        t = {k: stats(v)["median"] for k, v in timed_loops(calls, repeats).items()}
+        gjk_s, both_s, whole_s = t["gjk"], t["both"], t["whole"]
         epa = iters[iters[:, 1] > 0, 1]
         rows.append(
             {
