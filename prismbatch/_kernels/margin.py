@@ -87,23 +87,25 @@ def pair_margin(P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, margin, rtol, atol, eps, 
     dax, day, daz = np.float64(Ra[0, 2]), np.float64(Ra[1, 2]), np.float64(Ra[2, 2])
     dbx, dby, dbz = np.float64(Rb[0, 2]), np.float64(Rb[1, 2]), np.float64(Rb[2, 2])
     pz = dax * dx + day * dy + daz * dz  # b's centre along a's axis (a lies at pz >= 0)
-    if dax * dbx + day * dby + daz * dbz <= 0.0:
+    apart = dax * dbx + day * dby + daz * dbz <= 0.0
+    far = lo + FAR_SLACK * (ra + rb + centre_distance)
+    if apart:
         # Neither body reaches over the other's end plane along its axis, so each end plane bounds the
         # gap: b lies below pz + rb along d_a, a below ra - d_b.(c_b - c_a) along d_b. Far pairs (the
         # paper's facing scene) stop here, before the difference is built. These bounds take the axes
         # as unit and across the end faces, true only to the rotations' orthonormality (1e-5 in
         # float32), so they must clear the margin by FAR_SLACK of the pair's size.
-        far = lo + FAR_SLACK * (ra + rb + centre_distance)
         if -(pz + rb) > far or (dbx * dx + dby * dy + dbz * dz) - ra > far:
             return False, DECIDED
+    ux, uy, uz = _first_direction(dx, dy, dz, dax, day, daz, dbx, dby, dbz)
+    un = math.sqrt(ux * ux + uy * uy + uz * uz)
+    if apart:
         # The same for the first direction u, by the end faces' radii: D's support there is at most
         # -u.d + (ra + rb) |u| (the cone's part is 0 where u.d_a <= 0 <= u.d_b; with the axes apart, each
         # point of the cut cone is s d_a - t d_b with s, t <= 2 L, which bounds what rounding leaves of it).
-        ux, uy, uz = _first_direction(dx, dy, dz, dax, day, daz, dbx, dby, dbz)
-        un = math.sqrt(ux * ux + uy * uy + uz * uz)
-        cone = 2.0 * BOX * (ra + rb + centre_distance)
-        cone *= max(ux * dax + uy * day + uz * daz, 0.0) + max(-(ux * dbx + uy * dby + uz * dbz), 0.0)
-        if (ux * dx + uy * dy + uz * dz - cone) / un - (ra + rb) > far:
+        cone_part = 2.0 * BOX * (ra + rb + centre_distance)
+        cone_part *= max(ux * dax + uy * day + uz * daz, 0.0) + max(-(ux * dbx + uy * dby + uz * dbz), 0.0)
+        if (ux * dx + uy * dy + uz * dz - cone_part) / un - (ra + rb) > far:
             return False, DECIDED
     # D_L as pair_distance builds it.
     fr, cone, s, (ex, ey, ez) = cut_difference(Ra, Rb, dx, dy, dz, BOX * (ra + rb + centre_distance))
@@ -114,9 +116,8 @@ def pair_margin(P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, margin, rtol, atol, eps, 
             return True, DECIDED
         if lower > lo:
             return False, DECIDED
-    ux, uy, uz = _first_direction(dx, dy, dz, dax, day, daz, dbx, dby, dbz)
     x, y, z, ia, ib, kc = support(P, ix, fr, cone, ux, uy, uz)
-    lower = -(ux * x + uy * y + uz * z) / math.sqrt(ux * ux + uy * uy + uz * uz)  # D_L lies beyond -u
+    lower = -(ux * x + uy * y + uz * z) / un  # D_L lies beyond -u
     if lower > lo:
         return False, DECIDED
     if pz >= 0.0:  # b's centre inside a is an overlap
