@@ -80,7 +80,8 @@ def _loop(P, aoff, arad, acen, boff, brad, bcen, pos_a, rot_a, pos_b, rot_b, rto
         L = dist_kernels.BOX * (arad[0] + brad[0] + math.sqrt(dx * dx + dy * dy + dz * dz))
         acc = max(dist_kernels.ACC_FRACTION * tol, dist_kernels.ACC_EPS * dist_kernels.EPS64 * L)
         loose = max(dist_kernels.LOOSE_FRACTION * tol, acc)
-        fr, cone, _, _ = cut_difference(rot_a[i], rot_b[i], dx, dy, dz, L)
+        fr, cone, _, _, k = cut_difference(rot_a[i], rot_b[i], dx, dy, dz, L)
+        acc, loose = k * acc, k * loose  # in D_L's units, as pair_distance runs them
         cnt[0] = cnt[1] = 0
         m, _, _, _, inside, lower = gjk_counted(P, ix, fr, cone, 0.0, 0.0, 0.0, acc, loose, W, I, lam, cnt)
         if inside and not lower > acc:

@@ -327,7 +327,7 @@ def pair_distance(P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, rtol, atol, eps, witnes
     L = BOX * S
     acc = max(ACC_FRACTION * tol, ACC_EPS * EPS64 * L)
     loose = max(LOOSE_FRACTION * tol, acc)
-    fr, cone, s, (ex, ey, ez) = cut_difference(Ra, Rb, dx, dy, dz, L)
+    fr, cone, s, (ex, ey, ez), k = cut_difference(Ra, Rb, dx, dy, dz, L)
     if ex == 0.0 and ey == 0.0 and ez == 0.0:
         # exactly parallel axes: apart in the plane, the gap is that of the end faces there and along the
         # axes (no cut box)
@@ -336,20 +336,22 @@ def pair_distance(P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, rtol, atol, eps, witnes
             if not witness:
                 nrm = pa = (math.nan, math.nan, math.nan)
             return gap, tol, PLANAR_GAP, nrm, pa
-    m, vx, vy, vz, inside, lower = gjk(P, ix, fr, cone, 0.0, 0.0, 0.0, acc, loose, W, I, lam)
+    # GJK and EPA work in units of 1 / k (see cut_difference), and so do their accuracies
+    m, vx, vy, vz, inside, lower = gjk(P, ix, fr, cone, 0.0, 0.0, 0.0, k * acc, k * loose, W, I, lam)
     code = GJK_GAP
-    if inside and lower > acc:
+    if inside and lower > k * acc:
         # GJK stalled short of its accuracy (rounding on nearly coplanar faces of D_L: nearly parallel
         # axes) but a support plane proves a gap: EPA, which starts from the origin inside, would be
         # wrong; |v| is attained by the simplex's points, an upper bound within |v| - lower of the gap.
         inside = False
         code = GJK_STALLED
     if not inside:
-        dist = math.sqrt(vx * vx + vy * vy + vz * vz)
-        nx, ny, nz = -vx / dist, -vy / dist, -vz / dist
+        vn = math.sqrt(vx * vx + vy * vy + vz * vz)
+        nx, ny, nz = -vx / vn, -vy / vn, -vz / vn
+        dist = vn / k
     else:
-        depth, nx, ny, nz, code = epa(P, ix, fr, cone, W, I, m, acc, work)
-        dist = -depth
+        depth, nx, ny, nz, code = epa(P, ix, fr, cone, W, I, m, k * acc, work)
+        dist = -depth / k
         if code == EPA_STOPPED and s > 0.0 and ex == 0.0 and ey == 0.0 and ez == 0.0:
             # D is a prism along the axes: its depth is the end faces' planar overlap, exactly
             depth, nrm, pa = parallel_overlap(P, ix, Ra, Rb, ox, oy, oz, dx, dy, dz)
@@ -375,15 +377,16 @@ def pair_distance(P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, rtol, atol, eps, witnes
     if not witness:
         return dist, tol, code, (nan, nan, nan), (nan, nan, nan)
     if inside:  # split the foot point -dist n (on D's boundary, to within acc) into A and B
-        m, vx, vy, vz, _, _ = gjk(P, ix, fr, cone, -dist * nx, -dist * ny, -dist * nz, acc, loose, W, I, lam)
-    px, py, pz = ox, oy, oz
+        f = -k * dist
+        m, vx, vy, vz, _, _ = gjk(P, ix, fr, cone, f * nx, f * ny, f * nz, k * acc, k * loose, W, I, lam)
+    px = py = pz = 0.0
     for j in range(m):
         qx, qy, qz = point_a(P[0], P[1], ix[0], fr, I[j, 0])
         al = cone[9 + 3 * I[j, 2]]  # the part of C_L's corner along a's axis
         px += lam[j] * (qx + al * cone[3])
         py += lam[j] * (qy + al * cone[4])
         pz += lam[j] * (qz + al * cone[5])
-    return dist, tol, code, (nx, ny, nz), (px, py, pz)
+    return dist, tol, code, (nx, ny, nz), (ox + px / k, oy + py / k, oz + pz / k)
 
 
 @jit(refcounts=True)

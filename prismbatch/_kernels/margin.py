@@ -107,8 +107,9 @@ def pair_margin(P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, margin, rtol, atol, eps, 
         cone_part *= max(ux * dax + uy * day + uz * daz, 0.0) + max(-(ux * dbx + uy * dby + uz * dbz), 0.0)
         if (ux * dx + uy * dy + uz * dz - cone_part) / un - (ra + rb) > far:
             return False, DECIDED
-    # D_L as pair_distance builds it.
-    fr, cone, s, (ex, ey, ez) = cut_difference(Ra, Rb, dx, dy, dz, BOX * (ra + rb + centre_distance))
+    # D_L as pair_distance builds it, in units of 1 / k (see cut_difference), as are hi_k and lo_k.
+    fr, cone, s, (ex, ey, ez), k = cut_difference(Ra, Rb, dx, dy, dz, BOX * (ra + rb + centre_distance))
+    hi_k, lo_k = k * hi, k * lo
     if ex == 0.0 and ey == 0.0 and ez == 0.0:
         # exactly parallel axes: apart in the plane, the gap as pair_distance takes it (parallel_gap)
         lower, gap, _, _ = parallel_gap(P, ix, Ra, Rb, ox, oy, oz, dx, dy, dz, SLACK * tol, s)
@@ -118,7 +119,7 @@ def pair_margin(P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, margin, rtol, atol, eps, 
             return False, DECIDED
     x, y, z, ia, ib, kc = support(P, ix, fr, cone, ux, uy, uz)
     lower = -(ux * x + uy * y + uz * z) / un  # D_L lies beyond -u
-    if lower > lo:
+    if lower > lo_k:
         return False, DECIDED
     if pz >= 0.0:  # b's centre inside a is an overlap
         px = Ra[0, 0] * dx + Ra[1, 0] * dy + Ra[2, 0] * dz
@@ -131,12 +132,12 @@ def pair_margin(P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, margin, rtol, atol, eps, 
     vx, vy, vz = x, y, z
     for _ in range(GJK_MAX_ITER):
         vv = vx * vx + vy * vy + vz * vz
-        if vv <= hi * hi:
+        if vv <= hi_k * hi_k:
             return True, DECIDED
         vn = math.sqrt(vv)
         x, y, z, ia, ib, kc = support(P, ix, fr, cone, -vx, -vy, -vz)
         lower = max(lower, (vx * x + vy * y + vz * z) / vn)
-        if lower > lo:
+        if lower > lo_k:
             return False, DECIDED
         for j in range(m):
             if I[j, 0] == ia and I[j, 1] == ib and I[j, 2] == kc:  # no new point: rounding stopped GJK

@@ -46,22 +46,30 @@ def cone_box(dax, day, daz, ex, ey, ez, s, L):
 
 @jit(inline="always")
 def cut_difference(Ra, Rb, dx, dy, dz, L):
-    """D_L for :func:`support` from the poses: ``(fr, cone, s, (ex, ey, ez))``.
+    """D_L for :func:`support` from the poses, in the pair's own unit: ``(fr, cone, s, (ex, ey, ez), k)``.
 
     ``fr``: columns 0, 1 of R_a and R_b, then ``(dx, dy, dz)`` = c_b - c_a; ``cone``: :func:`cone_box`
     with box half-width L; ``s``: the sign of d_a.d_b; ``e = d_b - s d_a``, formed exactly. All in
     float64 whatever the pose arrays' dtype, so that the supports, and GJK and EPA on them, run in
     double: with float32 products, the witness GJK stalled short of the foot point on some float32
     pairs and left point_b 1.7 to 37 tol outside b.
+
+    ``k``: the power of two that brings L into [0.5, 1). The columns, c_b - c_a and the cone's corners
+    are multiplied by it, so every support point, and GJK and EPA, are k times the true ones: exactly
+    so (a power of two only shifts exponents), but with no overflow or underflow where GJK's and
+    EPA's cross products reach L^4 (at sizes beyond about 1e76 or below 1e-76 they had left gaps of
+    -0 and depths 1e9 tol off). Lengths they return are divided by k.
     """
     f = np.float64
-    fr = (f(Ra[0, 0]), f(Ra[1, 0]), f(Ra[2, 0]), f(Ra[0, 1]), f(Ra[1, 1]), f(Ra[2, 1]))
-    fr = fr + (f(Rb[0, 0]), f(Rb[1, 0]), f(Rb[2, 0]), f(Rb[0, 1]), f(Rb[1, 1]), f(Rb[2, 1]), f(dx), f(dy), f(dz))
+    k = math.ldexp(1.0, -math.frexp(L)[1])
+    fr = (k * f(Ra[0, 0]), k * f(Ra[1, 0]), k * f(Ra[2, 0]), k * f(Ra[0, 1]), k * f(Ra[1, 1]), k * f(Ra[2, 1]))
+    fr = fr + (k * f(Rb[0, 0]), k * f(Rb[1, 0]), k * f(Rb[2, 0]), k * f(Rb[0, 1]), k * f(Rb[1, 1]), k * f(Rb[2, 1]))
+    fr = fr + (k * f(dx), k * f(dy), k * f(dz))
     dax, day, daz = f(Ra[0, 2]), f(Ra[1, 2]), f(Ra[2, 2])
     dbx, dby, dbz = f(Rb[0, 2]), f(Rb[1, 2]), f(Rb[2, 2])
     s = 1.0 if dax * dbx + day * dby + daz * dbz >= 0.0 else -1.0
     ex, ey, ez = dbx - s * dax, dby - s * day, dbz - s * daz  # exact (Sterbenz) for nearly (anti)parallel axes
-    return fr, cone_box(dax, day, daz, ex, ey, ez, s, L), s, (ex, ey, ez)
+    return fr, cone_box(dax, day, daz, ex, ey, ez, s, k * L), s, (ex, ey, ez), k
 
 
 @jit(inline="always")

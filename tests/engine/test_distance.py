@@ -36,6 +36,7 @@ from prismbatch.distance import (
 )
 from prismbatch.geometry import pair_scale_tolerance
 from prismbatch.lab.distance_ref import Body, residual, sat_separation, signed_distance_of
+from prismbatch.sampling import free_poses
 
 from helpers import (
     R_DOWN,
@@ -421,6 +422,39 @@ def test_tiny_and_huge_objects_far_from_the_origin(size, offset):
     r, _ = check(f"size {size:g} at {offset:g}", d)
     base = distance_with_witnesses(make_pairs(np.random.default_rng(int(np.log10(size)) + 50), 80, "free", "small"))
     np.testing.assert_allclose(r.distance, size * base.distance, rtol=0, atol=10 * r.tol.max())
+
+
+@pytest.mark.parametrize("scale", [2.0**-330, 1e-99, 1e-80, 1e80, 1e99, 2.0**328])
+def test_scales_at_the_ends_of_the_accepted_range(scale):
+    """Shapes and positions scaled towards 1e-100 and 1e100 (sizes the API accepts): the distance, its
+    witnesses, the margin query and the time of impact scale with them. GJK's and EPA's cross products
+    reach the size^4, which overflowed beyond about 1e76 and underflowed below 1e-76 (distances of -0
+    and 1e9 tol off, margins the wrong way) before they ran in the pair's own unit. A power of two
+    scales every float exactly, and then the answers do too, to the bit."""
+    a, b = pb.Prism.regular(5, 2.0), pb.Prism.regular(6, 2.5, phase=0.3)
+    pos_a, rot_a, pos_b, rot_b = free_poses(400, np.random.default_rng(71), radius=2.5)
+    base = pb.distance(a, b, pos_a, rot_a, pos_b, rot_b, witness=True)
+    base_margin = pb.collide(a, b, pos_a, rot_a, pos_b, rot_b, margin=0.5).hit
+    sa, sb = pb.Prism(a.xy * scale), pb.Prism(b.xy * scale)
+    r = pb.distance(sa, sb, pos_a * scale, rot_a, pos_b * scale, rot_b, witness=True)
+    margin = pb.collide(sa, sb, pos_a * scale, rot_a, pos_b * scale, rot_b, margin=0.5 * scale).hit
+    assert (r.status == SEPARATED).sum() >= 50 and (r.status == PENETRATING).sum() >= 50
+    if math.frexp(scale)[0] == 0.5:
+        np.testing.assert_array_equal(r.distance / scale, base.distance)
+        np.testing.assert_array_equal(r.point_b / scale, base.point_b)
+        np.testing.assert_array_equal(margin, base_margin)
+    else:  # the polygons and poses are rounded at the new scale
+        np.testing.assert_allclose(r.distance / scale, base.distance, rtol=0, atol=0.01 * base.tol.max())
+        np.testing.assert_allclose(r.point_b / scale, base.point_b, rtol=0, atol=0.01 * base.tol.max())
+        far = np.abs(base.distance - 0.5) > base.tol
+        np.testing.assert_array_equal(margin[far], base_margin[far])
+    np.testing.assert_array_equal(r.status, base.status)
+    sq = pb.Prism.regular(4, scale)
+    down = np.diag([1.0, -1.0, -1.0])
+    toi = pb.time_of_impact(
+        sq, sq, [0, 0, 0], down, [0, 0, 2.0 * scale], np.eye(3), velocity=[0, 0, -4.0 * scale], horizon=1.0
+    )
+    assert toi.status[0] == 1 and abs(toi.time[0] - 0.5) <= 1e-9 and 0.0 < toi.distance[0] <= 1e-8 * scale
 
 
 @pytest.mark.parametrize("shift", [1e2, pytest.param(1e5, marks=pytest.mark.slow), 1e8])
