@@ -64,9 +64,10 @@ def pair_tolerance(ra, rb, centre_distance, ox, oy, oz, dx, dy, dz, acx, acy, bc
 def _offset_twice_precise(i, acx, acy, bcx, bcy, Pa, Ra, Pb, Rb):
     """Component i of d = c_b - c_a summed in twice the working precision (Ogita, Rump and Oishi's
     Dot2), then rounded: within eps |d_i| plus a term of order eps^2 (|P| + |k|)."""
-    s, c = two_sum(np.float64(Pb[i]), -np.float64(Pa[i]))
-    for x, y in ((Rb[i, 0], bcx), (Rb[i, 1], bcy), (-Ra[i, 0], acx), (-Ra[i, 1], acy)):
-        h, r = two_product(np.float64(x), np.float64(y))
+    f = np.float64  # (a and b may differ in dtype: time_of_impact moves b in float64)
+    s, c = two_sum(f(Pb[i]), -f(Pa[i]))
+    for x, y in ((f(Rb[i, 0]), f(bcx)), (f(Rb[i, 1]), f(bcy)), (-f(Ra[i, 0]), f(acx)), (-f(Ra[i, 1]), f(acy))):
+        h, r = two_product(x, y)
         s, q = two_sum(s, h)
         c += q + r
     return s + c

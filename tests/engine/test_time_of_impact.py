@@ -196,6 +196,21 @@ def test_pose_at_time_and_serial_equals_parallel():
     assert len(rs[hit]) == hit.sum() and set(rs.columns()) >= {"time", "status", "pos_b_x", "rot_b_22", "contact_z"}
 
 
+def test_float32_poses_touch_at_the_time_to_their_tolerance():
+    """dtype=float32, as collide and distance take it. The moving pose is formed in float64 while a's
+    stays in float32: that mix once failed to compile (a TypingError, not a result)."""
+    rng = np.random.default_rng(8)
+    a, b = pb.Prism.regular(5, 2.0), pb.Prism.regular(36, 0.7)
+    pos_b, rot_b, vel, w = random_motions(rng, 200, 0.7)
+    kw = dict(horizon=2.0, pose=True)
+    r64 = time_of_impact(a, b, [0, 0, 0], DOWN, pos_b, rot_b, vel, w, **kw)
+    r32 = time_of_impact(a, b, [0, 0, 0], DOWN, pos_b, rot_b, vel, w, dtype=np.float32, **kw)
+    moved = (r32.status == CONTACT) & (r32.time > 0)
+    assert moved.sum() >= 20 and (r32.status == r64.status).mean() >= 0.95
+    again = pb.distance(a, b, [0, 0, 0], DOWN, r32.pos_b[moved], r32.rot_b[moved], dtype=np.float32)
+    assert np.all(np.abs(again.distance) <= 2 * again.tol)
+
+
 def test_iteration_cap_is_reported_not_a_contact():
     # Turning towards a's own direction needs ever smaller steps: with a cap of 3 the pair is undecided.
     b = pb.Prism.regular(4, 0.5)
