@@ -424,7 +424,7 @@ def within(r, p, i=0):
     return r.converged[i] and abs(r.p[i] - p) < 2 * half
 
 
-@pytest.mark.parametrize("size, far", [(1e-6, 1e3), (1e-6, 1e6), (1e4, 1e6), (1e4, 0.0)])
+@pytest.mark.parametrize("size, far", [(1e-6, 1e3), (1e-6, 1e6), (1e4, 1e6), (1e4, 0.0), (1e-99, 0.0), (1e98, 0.0)])
 @pytest.mark.parametrize("level", [0.1, 0.3719, 0.47534])
 def test_known_answer_at_extreme_scales(size, far, level):
     """The facing squares scaled by ``size`` and moved ``far`` from the origin: p = Phi(-height / sz)
