@@ -477,13 +477,13 @@ def _batch_size(a: np.ndarray, single_ndim: int, name: str) -> int | None:
     raise ValueError(f"{name} has shape {a.shape}; expected {core} or (N, {', '.join(map(str, core))})")
 
 
-def common_batch_size(pos_a, rot_a, pos_b, rot_b, *, n_shapes=None):
+def common_batch_size(pos_a, rot_a, pos_b, rot_b, *, n_shapes=None, shapes_name="shape set"):
     """Common batch size ``N`` of parsed poses (and a shape set), without copying.
 
     Single items and batches of one broadcast against anything; any two other
     sizes must agree. Raises ValueError listing every argument's batch size,
     e.g. ``"batch sizes do not match: pos_a has 5, rot_a has 1 (broadcast),
-    pos_b has 7, rot_b has 7"``.
+    pos_b has 7, rot_b has 7"``. ``shapes_name``: what ``n_shapes`` counts, for that message.
     """
     arrays = (pos_a, rot_a, pos_b, rot_b)
     names = ("pos_a", "rot_a", "pos_b", "rot_b")
@@ -491,7 +491,7 @@ def common_batch_size(pos_a, rot_a, pos_b, rot_b, *, n_shapes=None):
     sizes = [_batch_size(a, nd, nm) for a, nd, nm in zip(arrays, ndims, names)]
     entries = list(zip(names, sizes))
     if n_shapes is not None:
-        entries.append(("shape set", int(n_shapes)))
+        entries.append((shapes_name, int(n_shapes)))
     n = broadcast_size([s for _, s in entries])
     if n is None:
         parts = []
@@ -513,7 +513,7 @@ def broadcast_size(sizes):
     return None if len(big) > 1 else (big.pop() if big else 1)
 
 
-def broadcast_poses(pos_a, rot_a, pos_b, rot_b, *, n_shapes=None, dtype=np.float64):
+def broadcast_poses(pos_a, rot_a, pos_b, rot_b, *, n_shapes=None, shapes_name="shape set", dtype=np.float64):
     """Broadcast two (batches of) poses to a common batch size ``N``.
 
     Parameters
@@ -525,6 +525,9 @@ def broadcast_poses(pos_a, rot_a, pos_b, rot_b, *, n_shapes=None, dtype=np.float
     n_shapes : int or None, optional
         Batch size imposed by a per-pair shape set (None if the shapes are
         not given per pair).  Takes part in the same broadcasting rule.
+    shapes_name : str, optional
+        What ``n_shapes`` counts, as the error message names it (a batch of
+        covariances, say).
     dtype : {np.float64, np.float32}, optional
         Output dtype (float64 by default).
 
@@ -550,7 +553,7 @@ def broadcast_poses(pos_a, rot_a, pos_b, rot_b, *, n_shapes=None, dtype=np.float
     out_dt = _out_dtype(dtype)
     arrays = (pos_a, rot_a, pos_b, rot_b)
     ndims = (1, 2, 1, 2)
-    N = common_batch_size(pos_a, rot_a, pos_b, rot_b, n_shapes=n_shapes)
+    N = common_batch_size(pos_a, rot_a, pos_b, rot_b, n_shapes=n_shapes, shapes_name=shapes_name)
 
     out = []
     for a, nd in zip(arrays, ndims):

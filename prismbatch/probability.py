@@ -286,6 +286,8 @@ def estimate(col, pos_a, rot_a, pos_b, rot_b, cov_b, *, cov_a, rel_error, confid
     confidence = real_scalar(confidence, "confidence", 0.0, 1.0)
     if not 0.0 < confidence < 1.0:
         raise ValueError(f"confidence must be in (0, 1), got {confidence!r}")
+    if not 0.5 + 0.5 * confidence < 1.0:  # its normal quantile would be infinite
+        raise ValueError(f"confidence must be at most {1.0 - 2.0**-52!r}, got {confidence!r}")
     max_samples = integer(DEFAULT_MAX_SAMPLES if max_samples is None else max_samples, "max_samples", 1)
     if method not in _METHOD_NAMES:
         raise ValueError(f"method must be one of {_METHOD_NAMES}, got {method!r}")
@@ -293,8 +295,7 @@ def estimate(col, pos_a, rot_a, pos_b, rot_b, cov_b, *, cov_a, rel_error, confid
     seed = int(np.random.SeedSequence().entropy) if seed is None else integer(seed, "seed", 0)
     pa, ra = as_pose(pos_a, rot_a, quat_order=quat_order, name="a")
     pb, rb = as_pose(pos_b, rot_b, quat_order=quat_order, name="b")
-    n_cov = [np.shape(c)[0] for c in (cov_b, cov_a) if c is not None and np.ndim(c) == 3]
-    n, (pa, ra, pb, rb) = broadcast_poses(pa, ra, pb, rb, n_shapes=n_cov[0] if n_cov else None)
+    n, (pa, ra, pb, rb) = broadcast_queries(pa, ra, pb, rb, cov_b, cov_a)
     # Contact is invariant under a shift of both bodies: sampling about a's nominal position keeps
     # collide's rounding band (4 eps |position|) from counting as contact far from the origin.
     pa, pb = np.zeros_like(pa), pb - pa
@@ -307,6 +308,16 @@ def estimate(col, pos_a, rot_a, pos_b, rot_b, cov_b, *, cov_a, rel_error, confid
     keys = _query_keys(query_index, n)
     run = _Run(col, (pa, ra, pb, rb), L, NormalDist().inv_cdf(0.5 + 0.5 * confidence), rel_error, parallel)
     return run.estimate(method, translation_only, max_samples, seed, keys, confidence)
+
+
+def broadcast_queries(pos_a, rot_a, pos_b, rot_b, cov_b, cov_a):
+    """``(n, (pos_a, rot_a, pos_b, rot_b))``: parsed poses broadcast to the queries' count, which a batch
+    of covariances (N, 6, 6) takes part in (:func:`~prismbatch.poses.broadcast_poses`, naming it)."""
+    batched = [
+        (np.shape(c)[0], nm) for c, nm in ((cov_b, "cov_b"), (cov_a, "cov_a")) if c is not None and np.ndim(c) == 3
+    ]
+    n, name = batched[0] if batched else (None, "")
+    return broadcast_poses(pos_a, rot_a, pos_b, rot_b, n_shapes=n, shapes_name=name)
 
 
 def _noise_factor(cov, name, n):
@@ -361,7 +372,7 @@ def _query_keys(query_index, n):
     if query_index is None:
         return np.arange(n)
     q = np.asarray(query_index)
-    if q.dtype.kind not in "iu" or q.shape != (n,) or (q < 0).any():
+    if q.dtype.kind not in "iu" or q.shape != (n,) or (q < 0).any() or (q > np.iinfo(np.int64).max).any():
         raise ValueError(f"query_index must be {n} integers >= 0 (one per query), got shape {q.shape} {q.dtype}")
     return q.astype(np.int64)
 
@@ -447,7 +458,7 @@ class _Run:
         p, low, high = np.zeros(n), np.zeros(n), np.zeros(n)
         samples, hits = np.zeros(n, np.int64), np.zeros(n, np.int64)
         converged, how, beta = np.zeros(n, bool), np.full(n, PLAIN, np.int8), np.full(n, np.nan)
-        noisy = np.abs(self.L).reshape(n, -1).max(axis=1) > 0
+        noisy = np.abs(self.L).max(axis=(1, 2)) > 0
         exact = np.flatnonzero(~noisy)
         if len(exact):  # no noise at all: the nominal answer
             hit = self.col.collide(
@@ -508,8 +519,9 @@ class _Run:
                         pilot[i], state[i] = st.n, Tally()
                         if i not in rho_plain:  # (a plain interval has no normal form of its own)
                             rho = st.relative_half_width(self.z, normal=True)
+                        ratio = rho / self.rel  # (squared by a product: a tiny rel_error overflows it to inf)
                         nxt[i] = int(
-                            min(max(math.ceil(PILOT_MARGIN * st.n * (rho / self.rel) ** 2), FIRST_ROUND), left)
+                            min(max(math.ceil(min(PILOT_MARGIN * st.n * ratio * ratio, left)), FIRST_ROUND), left)
                         )
                     else:  # no hit yet
                         nxt[i] = int(min(st.n, left))
@@ -519,8 +531,10 @@ class _Run:
                     continue
                 if left <= 0:
                     continue
-                need = st.n * (rho / self.rel) ** 2 if np.isfinite(rho) else 2 * st.n
-                nxt[i] = int(min(max(math.ceil(1.1 * need) - st.n, FIRST_ROUND), st.n, left))
+                ratio = rho / self.rel
+                need = st.n * ratio * ratio if np.isfinite(rho) else 2 * st.n
+                # (capped before the ceiling, which cannot take inf; the cap changes no min below)
+                nxt[i] = int(min(max(math.ceil(min(1.1 * need, 2 * st.n + left)) - st.n, FIRST_ROUND), st.n, left))
             todo = nxt
         for i, st in state.items():
             samples[i], hits[i] = st.n + (pilot[i] or 0), st.hits

@@ -166,6 +166,7 @@ class Prism:
         """
         if isinstance(n, (bool, np.bool_)) or not isinstance(n, (int, np.integer)):
             raise TypeError(f"Prism.regular: n must be an integer, got {type(n).__name__} {n!r}")
+        n = int(n)  # (a small NumPy integer would overflow in the memory estimate below)
         if not 3 <= n <= MAX_VERTICES:
             big = n > MAX_VERTICES  # say why the limit is there
             need = f" (it would need about {format_bytes(n * _BYTES_PER_VERTEX)} of memory)" if big else ""

@@ -16,6 +16,7 @@ from __future__ import annotations
 import json
 import pickle
 import shutil
+import warnings
 from pathlib import Path
 
 from .report import atomic_open, jsonable, write_json
@@ -88,12 +89,18 @@ class Checkpoint:
         return self.dir / f"{unit}.pickle"
 
     def load(self, unit):
-        """The saved result of ``unit``, or None when it was not finished."""
+        """The saved result of ``unit``, or None when it was not finished, or its file cannot be read
+        (cut short or damaged after it was written: the unit is then computed again, with a warning)."""
         p = self._path(unit)
         if not p.exists():
             return None
-        with open(p, "rb") as f:
-            return pickle.load(f)
+        try:
+            with open(p, "rb") as f:
+                return pickle.load(f)
+        except (pickle.UnpicklingError, EOFError, AttributeError, ImportError, IndexError, TypeError) as exc:
+            warnings.warn(f"checkpoint {p} cannot be read ({type(exc).__name__}: {exc}); computing it again",
+                          RuntimeWarning, stacklevel=2)  # fmt: skip
+            return None
 
     def save(self, unit, result):
         """Save the result of a finished ``unit`` (atomically)."""

@@ -209,7 +209,7 @@ def replay_command(args):
         replay(args.file, indices=args.record)
     except OSError as exc:
         print(f"prismbatch: error: cannot read {args.file}: {exc.strerror or exc}", file=sys.stderr)
-        return 2
+        return 3  # (the documented status of a file that cannot be read)
     return 0
 
 

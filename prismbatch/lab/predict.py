@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..poses import as_pose, broadcast_poses
-from ..probability import ProbabilityResult, collision_probability
+from ..poses import as_pose
+from ..probability import ProbabilityResult, broadcast_queries, collision_probability
 from .checks import check_int
 
 __all__ = ["predict", "run_part", "warm"]
@@ -56,8 +56,7 @@ def predict(shape_a, shape_b, pos_a, rot_a, pos_b, rot_b, cov_b, *, cov_a=None, 
         seed = int(np.random.SeedSequence().entropy)
     pa, ra = as_pose(pos_a, rot_a, quat_order=quat_order, name="a")
     pb, rb = as_pose(pos_b, rot_b, quat_order=quat_order, name="b")
-    n_cov = [np.shape(c)[0] for c in (cov_b, cov_a) if c is not None and np.ndim(c) == 3]
-    n, poses = broadcast_poses(pa, ra, pb, rb, n_shapes=n_cov[0] if n_cov else None)
+    n, poses = broadcast_queries(pa, ra, pb, rb, cov_b, cov_a)
     covs = [None if c is None else np.asarray(c) for c in (cov_b, cov_a)]
     args = []
     for start in range(0, n, int(chunk_size)):

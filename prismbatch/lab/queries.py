@@ -16,6 +16,8 @@ quaternions with ``quat_order``, rotation vectors are not guessed: pass
 from __future__ import annotations
 
 import time
+import zipfile
+from pathlib import Path
 
 import numpy as np
 
@@ -46,9 +48,15 @@ _REQUIRED = ("xy_a", "xy_b", "pos_a", "rot_a", "pos_b", "rot_b")
 
 
 def read_queries(path):
-    """The queries of a ``.npz`` file as a dict of arrays (ValueError naming a missing or unknown key)."""
-    with np.load(path, allow_pickle=False) as f:
-        q = {k: f[k] for k in f.files}
+    """The queries of a ``.npz`` file as a dict of arrays (ValueError naming a missing or unknown key;
+    OSError where the file is not a NumPy archive or is cut short)."""
+    if Path(path).is_file() and not zipfile.is_zipfile(path):  # (np.load would take it for a pickle)
+        raise OSError(f"{path}: not a .npz query file (not a zip archive)")
+    try:
+        with np.load(path, allow_pickle=False) as f:
+            q = {k: f[k] for k in f.files}
+    except (zipfile.BadZipFile, EOFError) as exc:
+        raise OSError(f"{path}: not a readable .npz query file ({exc})") from exc
     unknown = sorted(set(q) - set(KEYS))
     if unknown:
         raise ValueError(f"{path}: unknown arrays {unknown}; a query file holds {sorted(KEYS)}")

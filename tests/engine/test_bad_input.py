@@ -62,6 +62,9 @@ def test_regular_arguments():
     with pytest.raises(ValueError, match="centre must be 2 finite numbers"):
         pb.Prism.regular(5, 1.0, centre=(0, 0, 0))
     assert pb.Prism.regular(np.int64(5), np.float32(2)).n_vertices == 5
+    assert pb.Prism.regular(np.int8(5), 1.0).n_vertices == 5  # (its memory estimate overflowed int8)
+    with pytest.raises(ValueError, match=r"n must be in \[3, 10,000,000\], got 2000000000"):
+        pb.Prism.regular(np.int32(2 * 10**9), 1.0)
 
 
 def test_ragged_polygon_names_the_argument():

@@ -339,12 +339,26 @@ def test_collider_method_matches_function():
         (dict(cov_b=np.eye(6), seed=-1), ValueError, "seed"),
         (dict(cov_b=np.eye(6), seed=True), TypeError, "seed must be an integer"),
         (dict(cov_b=np.eye(6), query_index=[0, 1, 2]), ValueError, "query_index"),
+        (dict(cov_b=np.eye(6), query_index=np.array([0, 2**64 - 1], np.uint64)), ValueError, "query_index"),
+        (dict(cov_b=np.eye(6), confidence=1 - 1e-16), ValueError, "confidence must be at most"),
+        (dict(cov_b=np.stack([np.eye(6)] * 3)), ValueError, "cov_b has 3"),
     ],
 )
 def test_bad_input(kw, err, match):
     cov_b = kw.pop("cov_b")
     with pytest.raises(err, match=match):
         collision_probability(SQ, SQ, np.zeros(3), DOWN, [[0, 0, 1.0], [0, 0, 2.0]], np.eye(3), cov_b, **kw)
+
+
+def test_empty_batch_and_a_tiny_rel_error():
+    """No queries give empty results (as collide and distance do); a rel_error far below what any budget
+    reaches samples up to max_samples and reports not converged (its sample count overflowed to inf)."""
+    r = collision_probability(SQ, SQ, np.zeros((0, 3)), DOWN, [0, 0, 1.0], np.eye(3), np.eye(6) * 1e-4, seed=0)
+    assert r.p.shape == r.samples.shape == (0,)
+    cov = np.diag([0, 0, 0.01, 0, 0, 0])
+    r = collision_probability(SQ, SQ, np.zeros(3), DOWN, [0, 0, 0.2], np.eye(3), cov, seed=1, rel_error=1e-300,
+                              max_samples=20000)  # fmt: skip
+    assert r.samples[0] == 20000 and not r.converged[0] and 0 < r.p[0] < 0.1
 
 
 def test_prism_sets_are_rejected():

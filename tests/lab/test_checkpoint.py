@@ -65,6 +65,23 @@ def test_a_checkpoint_resumes_only_the_same_settings(tmp_path):
     assert not (tmp_path / "checkpoint").exists()
 
 
+def test_a_damaged_checkpoint_unit_is_computed_again(tmp_path):
+    """A unit file cut short or overwritten after it was written is not a finished unit: load gives
+    None (the run computes it again) with a warning naming the file, not an unpickling traceback."""
+    ck = Checkpoint(tmp_path, "validate", {"seed": 1})
+    ck.save("a", list(range(1000)))
+    ck.save("b", [3])
+    path = glob.glob(str(tmp_path / "checkpoint" / "validate" / "a.pickle"))[0]
+    data = open(path, "rb").read()
+    for damaged in (data[: len(data) // 2], b"garbage", b""):
+        with open(path, "wb") as f:
+            f.write(damaged)
+        resumed = Checkpoint(tmp_path, "validate", {"seed": 1}, resume=True)
+        with pytest.warns(RuntimeWarning, match="a.pickle cannot be read"):
+            assert resumed.load("a") is None
+        assert resumed.load("b") == [3]
+
+
 def test_an_interrupted_validation_resumes_to_the_uninterrupted_counts(tmp_path, monkeypatch):
     from prismbatch.lab.validate import driver
 

@@ -116,3 +116,10 @@ def test_cli_predict_file(tmp_path, capsys):
     assert main(["predict", str(bad)]) == 2
     assert "nothing to predict" in capsys.readouterr().err
     assert main(["predict", "--demo", "0"]) == 2
+    # a file that cannot be read: status 3, one line naming it (not a traceback, not a pickle hint)
+    for content in (b"not a zip archive", path.read_bytes()[:200]):
+        bad.write_bytes(content)
+        assert main(["predict", str(bad)]) == 3
+        err = capsys.readouterr().err
+        assert f"{bad}: not a .npz query file" in err and "Traceback" not in err and "pickle" not in err
+    assert main(["predict", str(tmp_path / "missing.npz")]) == 3

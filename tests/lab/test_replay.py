@@ -338,3 +338,11 @@ def test_saved_case_must_be_a_case_number(tmp_path, case):
     p = _write_doc(tmp_path, doc)
     with pytest.raises(ValueError, match=r"bad\.json: record 0: prismbatch\.case must be a case number 1\.\.11"):
         read_replay(p)
+
+
+def test_cli_a_missing_file_is_status_3(tmp_path, capsys):
+    """A file that cannot be read is status 3 (the parser's documented status), as for predict."""
+    from prismbatch.cli import main
+
+    assert main(["replay", str(tmp_path / "missing.json")]) == 3
+    assert "cannot read" in capsys.readouterr().err
