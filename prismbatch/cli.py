@@ -74,6 +74,22 @@ def _demo(args):
     return 0
 
 
+def _at_least(low):
+    """An argparse type: an integer >= ``low`` (so that a bad count is named by its flag, exit status 2)."""
+
+    def parse(text):
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+        if v < low:
+            raise argparse.ArgumentTypeError(f"must be an integer >= {low}, got {v}")
+        return v
+
+    parse.__name__ = f"integer >= {low}"
+    return parse
+
+
 def _int_list(text):
     """Parse '36,180,360' -> (36, 180, 360) for argparse."""
     try:
@@ -137,8 +153,8 @@ def _demo_parser(sub):
         description="Collide random pose pairs of the paper's scene (pentagon-sized a, "
         "hexagon-sized b, both regular n-gons) and print throughput and case counts.",
     )
-    p.add_argument("--pairs", type=int, default=1_000_000, help="number of pose pairs (default: 1,000,000)")
-    p.add_argument("--vertices", type=int, default=360, help="vertices of each end face (default: 360)")
+    p.add_argument("--pairs", type=_at_least(1), default=1_000_000, help="number of pose pairs (default: 1,000,000)")
+    p.add_argument("--vertices", type=_at_least(3), default=360, help="vertices of each end face (default: 360)")
     p.add_argument(
         "--distribution",
         choices=["facing", "free"],
@@ -174,7 +190,7 @@ def _experiment_parser(sub):
         default="square",
         help="object a: square prism, side 3 mm, or triangular prism, side 2.8 mm (default: square)",
     )
-    p.add_argument("--vertices", type=int, default=3600, help="vertices of b's end face (default: 3600)")
+    p.add_argument("--vertices", type=_at_least(3), default=3600, help="vertices of b's end face (default: 3600)")
     p.add_argument(
         "--plant",
         choices=_LabChoices(".lab.experiment", "PLANTS"),
@@ -235,7 +251,9 @@ def _validate_parser(sub):
         "replay file ('prismbatch replay FILE'). Exit status 1 if any disagreement lies "
         "outside the band, a contact is invalid, an output is non-finite or a signed distance is off.",
     )
-    p.add_argument("--pairs", type=int, default=100_000, metavar="N", help="pairs per distribution (default: 100,000)")
+    p.add_argument(
+        "--pairs", type=_at_least(1), default=100_000, metavar="N", help="pairs per distribution (default: 100,000)"
+    )
     p.add_argument(
         "--distributions",
         type=_name_list,
@@ -263,7 +281,11 @@ def _validate_parser(sub):
         "--seed", type=int, default=0, help="random seed; results do not depend on chunking or workers (default: 0)"
     )
     p.add_argument(
-        "--chunk-size", type=int, default=50_000, metavar="N", help="pairs per task: bounds memory (default: 50,000)"
+        "--chunk-size",
+        type=_at_least(1),
+        default=50_000,
+        metavar="N",
+        help="pairs per task: bounds memory (default: 50,000)",
     )
     p.add_argument("--dtype", choices=["float64", "float32"], default="float64", help="precision (default: float64)")
     p.add_argument("--rtol", type=float, default=None, help="relative tolerance (default: 1e-9 f64, 1e-5 f32)")
@@ -278,7 +300,7 @@ def _validate_parser(sub):
     )
     p.add_argument(
         "--lp-samples",
-        type=int,
+        type=_at_least(0),
         default=2000,
         metavar="N",
         help="random pairs per distribution checked by the exact LP (default: 2000)",
@@ -286,14 +308,14 @@ def _validate_parser(sub):
     p.add_argument("--no-contact-check", action="store_true", help="do not check contact points")
     p.add_argument(
         "--max-band-records",
-        type=int,
+        type=_at_least(0),
         default=1000,
         metavar="N",
         help="keep at most N 'inside band' records in the replay file (all are counted; default: 1000)",
     )
     p.add_argument(
         "--distance-pairs",
-        type=int,
+        type=_at_least(0),
         default=None,
         metavar="N",
         help="pairs of the signed-distance section in all, spread evenly over its distance buckets and "
@@ -318,7 +340,7 @@ def _validate_parser(sub):
     )
     p.add_argument(
         "--workers",
-        type=int,
+        type=_at_least(1),
         default=None,
         metavar="K",
         help="start a local Dask cluster of K worker processes (when no --scheduler)",
@@ -357,10 +379,14 @@ def _study_parser(sub):
         help="vertex counts (default: 36,180,360,1800,3600,7200)",
     )
     p.add_argument("--cases", type=_int_list, default=None, metavar="C,C,...", help="cases (default: 1-11)")
-    p.add_argument("--poses", type=int, default=None, metavar="N", help="poses per case (default: 300)")
-    p.add_argument("--repeats", type=int, default=None, metavar="R", help="timed repeats (default: 5)")
+    p.add_argument("--poses", type=_at_least(1), default=None, metavar="N", help="poses per case (default: 300)")
+    p.add_argument("--repeats", type=_at_least(1), default=None, metavar="R", help="timed repeats (default: 5)")
     p.add_argument(
-        "--batch-pairs", type=int, default=None, metavar="N", help="pairs per batch-throughput call (default: 100,000)"
+        "--batch-pairs",
+        type=_at_least(1),
+        default=None,
+        metavar="N",
+        help="pairs per batch-throughput call (default: 100,000)",
     )
     p.add_argument(
         "--peers",
@@ -371,14 +397,14 @@ def _study_parser(sub):
     )
     p.add_argument(
         "--table-vertices",
-        type=int,
+        type=_at_least(3),
         default=None,
         metavar="N",
         help="vertex count of Table I (default: 3600, the paper's, when measured, else the largest measured)",
     )
     p.add_argument(
         "--lp-checks",
-        type=int,
+        type=_at_least(0),
         default=10,
         metavar="K",
         help="disagreements per cell arbitrated by the exact LP (default: 10)",
@@ -407,9 +433,9 @@ def _workprec_parser(sub):
         metavar="N,N,...",
         help="vertex counts of the n-gon (default: 8 ... 100000, 11 values)",
     )
-    p.add_argument("--poses", type=int, default=None, metavar="N", help="near-contact poses (default: 20,000)")
+    p.add_argument("--poses", type=_at_least(1), default=None, metavar="N", help="near-contact poses (default: 20,000)")
     p.add_argument("--radius", type=float, default=1.0, help="cylinder radius (default: 1)")
-    p.add_argument("--repeats", type=int, default=None, metavar="R", help="timed passes (default: 3)")
+    p.add_argument("--repeats", type=_at_least(1), default=None, metavar="R", help="timed passes (default: 3)")
     p.add_argument("--no-fcl", dest="fcl", action="store_false", help="skip python-fcl (its rows stay, as NaN)")
     _add_output_options(p)
     _add_resume_option(p)
@@ -480,12 +506,16 @@ def _predict_parser(sub):
     p.add_argument("--horizon", type=float, default=1.0, help="look-ahead of queries without their own (default: 1)")
     p.add_argument("--rel-error", type=float, default=0.1, help="probability: target relative error (default 0.1)")
     p.add_argument("--confidence", type=float, default=0.95, help="probability: interval level (default 0.95)")
-    p.add_argument("--max-samples", type=int, default=1_000_000, help="probability: budget per query (default 1e6)")
+    p.add_argument(
+        "--max-samples", type=_at_least(1), default=1_000_000, help="probability: budget per query (default 1e6)"
+    )
     p.add_argument(
         "--quat-order", choices=("xyzw", "wxyz"), default=None, help="order of quaternion rotations in the file"
     )
-    p.add_argument("--chunk-size", type=int, default=1024, help="queries per task (default: 1024)")
-    p.add_argument("--workers", type=int, default=None, help="run on a local Dask cluster of this many processes")
+    p.add_argument("--chunk-size", type=_at_least(1), default=1024, help="queries per task (default: 1024)")
+    p.add_argument(
+        "--workers", type=_at_least(1), default=None, help="run on a local Dask cluster of this many processes"
+    )
     p.add_argument("--scheduler", default=None, metavar="ADDRESS", help="run on an existing Dask scheduler")
     _add_output_options(p, figures=False, what="predict.csv and predict.json")
     p.set_defaults(func=_lab_command("predict"))

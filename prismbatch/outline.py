@@ -108,7 +108,7 @@ def read_polygon(xy, name):
     arr = np.array(arr, dtype=np.float64, order="C")
     if arr.ndim != 2 or arr.shape[1] != 2:
         raise ValueError(f"{name}: vertices must have shape (n, 2), got {arr.shape}")
-    if arr.shape[0] >= 4 and (arr[0] == arr[-1]).all():
+    if arr.shape[0] >= 4 and (arr[0] == arr[-1]).all() and not (arr == arr[0]).all():
         arr = np.ascontiguousarray(arr[:-1])  # a closed ring: the last vertex closes it, it is not another
     n = arr.shape[0]
     if n < 3:
@@ -201,8 +201,10 @@ def _backtrack(edges, turns):
 
 
 def raise_first_failure(c, i, arr, name):
-    """Raise the ValueError of polygon ``i`` of the checks ``c``: its first failed check, in order."""
+    """Raise the ValueError of polygon ``i`` of the checks ``c``: its first failed check, in order. Vertex
+    numbers are the caller's: the checks after the edge lengths run on the counter-clockwise order."""
     n = c.ccw.shape[1]
+    given = (lambda k: n - 1 - k) if c.area2[i] < 0.0 else (lambda k: k)  # noqa: E731
     if c.coincide[i]:
         raise ValueError(f"{name}: all {n} vertices coincide")
     if c.short[i].any():
@@ -223,6 +225,7 @@ def raise_first_failure(c, i, arr, name):
     if c.dent[i].any():
         k = int(np.argmax(c.dent[i]))
         turn = c.turns[i, k]
+        k = given(k)
         hint = (
             ": a turn this small is the rounding of vertices dense for their distance from the polygon's own "
             "origin (a straight side sampled densely, or a fine polygon given far away); drop the vertices "
@@ -231,7 +234,7 @@ def raise_first_failure(c, i, arr, name):
             else ""
         )
         raise ValueError(f"{name}: polygon is not convex at vertex {k} (reflex turn of {-turn:.2g} rad){hint}")
-    fall, k = c.backtrack[0][i], int(c.backtrack[1][i])
+    fall, k = c.backtrack[0][i], given(int(c.backtrack[1][i]))
     if fall > _MAX_BACKTRACK:
         raise ValueError(
             f"{name}: polygon is not convex: its outline turns back by {fall:.2g} rad in all up to vertex {k}, "
@@ -241,4 +244,4 @@ def raise_first_failure(c, i, arr, name):
         raise ValueError(
             f"{name}: polygon outline is self-intersecting (it turns {c.total[i] / _TWO_PI:.3f} times, not once)"
         )
-    raise ValueError(f"{name}: polygon folds back on itself at vertex {int(np.argmax(c.fold[i]))}")
+    raise ValueError(f"{name}: polygon folds back on itself at vertex {given(int(np.argmax(c.fold[i])))}")

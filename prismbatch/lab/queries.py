@@ -117,7 +117,7 @@ def answer(q, *, horizon, seed, quat_order=None, workers=None, scheduler=None, c
         ``probability`` (a :class:`prismbatch.probability.ProbabilityResult` or
         None), ``execution`` and ``seconds`` per part.
     """
-    a, b = Prism(q["xy_a"]), Prism(q["xy_b"])
+    a, b = Prism(q["xy_a"], name="xy_a"), Prism(q["xy_b"], name="xy_b")
     poses = (q["pos_a"], q["rot_a"], q["pos_b"], q["rot_b"])
     out = {"toi": None, "probability": None, "execution": None, "seconds": {}}
     if "velocity" in q:

@@ -45,6 +45,17 @@ def test_clockwise_is_the_only_repair():
     np.testing.assert_array_equal(p.xy, cw[::-1])
 
 
+def test_a_clockwise_polygon_is_told_by_its_own_vertex_numbers():
+    """The convexity checks run on the counter-clockwise order; a message names the vertex as given."""
+    ccw = [[2, 0], [1, 1.9], [2, 2], [0, 2], [0, 0]]  # dent at vertex 1
+    with pytest.raises(ValueError, match="not convex at vertex 1 "):
+        pb.Prism(ccw)
+    with pytest.raises(ValueError, match="not convex at vertex 3 "):
+        pb.Prism(ccw[::-1])  # the same dent, now vertex 3
+    with pytest.raises(ValueError, match=r"polygon 1: polygon is not convex at vertex 3 "):
+        pb.PrismSet([SQ, ccw[::-1]])
+
+
 def test_regular_arguments():
     with pytest.raises(ValueError, match=r"n must be in \[3, "):
         pb.Prism.regular(2, 1.0)

@@ -93,7 +93,7 @@ BAD = [
     ([[0, 0], [1, 0]], ValueError, "at least 3 vertices"),
     ([[0, 0], [1, 0], [np.nan, 1]], ValueError, "vertex 2 is not finite"),
     ([[0, 0], [1, 0], [1, 1e-13]], ValueError, "too thin"),
-    (np.zeros((4, 2)), ValueError, "all 3 vertices coincide"),  # the 4th closes a ring
+    (np.zeros((4, 2)), ValueError, "all 4 vertices coincide"),  # (not a ring closed by the 4th: the count given)
     ([[0, 0], [1, 0], [1 + 1e-17, 1e-17], [0, 1]], ValueError, "edge 1 is"),
     ([[0, 0], [1, 0], [0, 1, 2]], ValueError, "could not be read"),
 ]

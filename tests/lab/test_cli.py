@@ -39,9 +39,23 @@ def test_demo_counts_are_consistent_and_reproducible():
     assert r1["case_counts"] == r2["case_counts"] and r1["hits"] == r2["hits"]
 
 
-def test_demo_bad_argument_is_an_error_message(capsys):
-    assert main(["demo", "--pairs", "0", "--no-progress"]) == 2
-    assert "error" in capsys.readouterr().err
+@pytest.mark.parametrize(
+    "argv, flag",
+    [
+        (["demo", "--pairs", "0"], "--pairs"),
+        (["validate", "--pairs", "-5"], "--pairs"),
+        (["validate", "--chunk-size", "0"], "--chunk-size"),
+        (["validate", "--lp-samples", "-1"], "--lp-samples"),
+        (["predict", "--demo", "3", "--workers", "0"], "--workers"),
+        (["predict", "--demo", "3", "--max-samples", "x"], "--max-samples"),
+    ],
+)
+def test_a_bad_count_is_named_by_its_flag(capsys, argv, flag):
+    """As argparse names any bad option (status 2), not by the function parameter behind it (n_pairs)."""
+    with pytest.raises(SystemExit) as info:
+        main(argv)
+    assert info.value.code == 2
+    assert f"error: argument {flag}: " in capsys.readouterr().err
 
 
 def test_help_lists_every_command(capsys):

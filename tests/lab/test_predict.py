@@ -123,3 +123,7 @@ def test_cli_predict_file(tmp_path, capsys):
         err = capsys.readouterr().err
         assert f"{bad}: not a .npz query file" in err and "Traceback" not in err and "pickle" not in err
     assert main(["predict", str(tmp_path / "missing.npz")]) == 3
+    np.savez(bad, xy_a=SQ.xy, xy_b=SQ.xy[:2], pos_a=np.zeros(3), rot_a=DOWN, pos_b=pos_b, rot_b=np.eye(3),
+             velocity=np.array([0.0, 0.0, -2.0]))  # fmt: skip
+    assert main(["predict", str(bad)]) == 2
+    assert "xy_b: a polygon needs at least 3 vertices" in capsys.readouterr().err

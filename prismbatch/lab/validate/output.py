@@ -149,6 +149,13 @@ def _case_rows(result):
     return rows
 
 
+
+def _run_text(execution):
+    """How the run was executed, e.g. "in-process, 1 worker(s)" (an interrupted run has no worker count)."""
+    workers = execution.get("workers")
+    return f"{execution.get('scheduler')}" + ("" if workers is None else f", {workers} worker(s)")
+
+
 def format_validation(result):
     """Terminal summary of a :class:`ValidationResult` as a list of lines.
 
@@ -164,7 +171,7 @@ def format_validation(result):
     L = [
         f"prismbatch validate: {cfg['n_pairs']:,} pairs per distribution, shapes {'/'.join(cfg['shapes'])}, "
         f"vertices {cfg['vertices']}, dtype {cfg['dtype']} (rtol {cfg['rtol']:g}), seed {cfg['seed']}",
-        f"  run: {result.execution.get('scheduler')}, {result.execution.get('workers')} worker(s); "
+        f"  run: {_run_text(result.execution)}; "
         f"wall {result.wall_time:.1f} s; compile/cache load {result.compile_time:.1f} s (excluded)",
     ]
     for row in _summary_rows(result):
@@ -262,8 +269,8 @@ def _markdown(result):
         f"{', '.join(cfg['shapes'])} with vertex counts {cfg['vertices']}; dtype {cfg['dtype']}, rtol "
         f"{cfg['rtol']:g}, atol {cfg['atol']:g}; seed {cfg['seed']}. FCL on "
         f"{cfg['fcl_fraction']:.0%} of the pairs, the exact LP on {cfg['lp_samples']:,} random pairs per "
-        f"distribution plus every FCL disagreement. Run: {result.execution.get('scheduler')}, "
-        f"{result.execution.get('workers')} worker(s), wall {result.wall_time:.1f} s.",
+        f"distribution plus every FCL disagreement. Run: {_run_text(result.execution)}, "
+        f"wall {result.wall_time:.1f} s.",
         "",
         "Touching band per pair: `band = max(tol, 1e-7 S)`, `S = R_a + R_b + |c_b - c_a|`. Outside it the "
         "LP decides; inside it any answer is allowed. FCL runs on finite stand-ins of length "
