@@ -172,6 +172,24 @@ def surely_above_by_radius(pz, r20, r21, r22, rb, tol):
     return r22 <= 0.0 and pz + math.sqrt(r20 * r20 + r21 * r21) * rb < -tol
 
 
+@jit(inline="always")
+def _plane_stretch(r00, r01, r10, r11):
+    """How far b's end face can reach in a's plane per unit of its radius: the largest singular value of
+    the block [[r00, r01], [r10, r11]] of R = Ra^-1 Rb, where it exceeds 1 (by more than rounding), else 1.
+
+    For orthonormal rotations it is at most 1, but a rotation is used as given (an exact affine map), and
+    a float32 matrix taken in float64 is orthonormal only to about 1e-7: its b reaches up to 1e-7 of its
+    radius further than rb, which is thousands of float64 tolerances (the coarse tests below missed
+    bodies 24 tol deep in each other on such rotations).
+    """
+    a = r00 * r00 + r10 * r10
+    c = r01 * r01 + r11 * r11
+    b = r00 * r01 + r10 * r11
+    h = 0.5 * (a - c)
+    s2 = 0.5 * (a + c) + math.sqrt(h * h + b * b)
+    return math.sqrt(s2) if s2 > 1.0 + 1e-15 else 1.0
+
+
 # Kept as one long function: the per-pair hot path (not split into calls, which would add call and
 # tuple overhead per pair; a measured split is future work).
 @jit
@@ -238,6 +256,7 @@ def pair_test(
         return False, CASE_ABOVE, nan, nan, nan  # the common case: leave at once
     pr = length2(px, py)
     wn = length2(r02, r12)
+    rb = rb * _plane_stretch(r00, r01, r10, r11)
     T = (pr + ra + rb + 2.0 * tol) / max(wn, 1e-150)
     # Perpendicular within reach: b's axis changes height by at most tol/4
     # over T. Then c is taken as 0 and the height relaxation widened by

@@ -382,3 +382,26 @@ def test_gap_just_below_tol_far_from_the_local_origin():
     assert pb.collide(A, B, pa, Ra, pb_, Rb, margin=gap + 0.6 * tol).hit[0]
     assert not pb.collide(A, B, pa, Ra, pb_, Rb, margin=gap - 0.6 * tol).hit[0]
     assert abs(pb.distance(A, B, pa, Ra, pb_, Rb).distance[0] - gap) <= 0.01 * tol
+
+
+def test_float32_rotations_taken_in_float64_reach_as_far_as_they_map():
+    # Certified overlaps and gaps under tol that the coarse test missed on float32 poses given to the
+    # float64 path: b's end face in a's plane reaches up to ~1e-7 of its radius beyond it there (the
+    # rotation is an exact affine map, orthonormal only to float32), which the test now allows for.
+    doc = recorded("float32_rotations_in_float64")
+    assert len(doc["pairs"]) == 24 and sum(rec["exact"]["gap_over_tol"] == 0 for rec in doc["pairs"]) >= 12
+    for rec in doc["pairs"]:
+        xa, pa, ra, xb, pb_, rb = recorded_pair(rec)
+        pose = [x.astype(np.float32) for x in (pa, ra, pb_, rb)]
+        assert all((p.astype(np.float64) == q).all() for p, q in zip(pose, (pa, ra, pb_, rb)))  # float32 values
+        A, B = pb.Prism(xa), pb.Prism(xb)
+        assert pair_scale_tolerance(A, B, *(p[None] for p in pose))[1][0] == float.fromhex(rec["tol"])
+        assert pb.collide(A, B, *pose).hit[0], rec["source"]
+        assert pb.Collider(A, B).collide_pair(*pose).hit, rec["source"]
+    # an overlap certified again here, in rational arithmetic
+    from prismbatch.lab.exact_gap import judge_pair
+
+    rec = doc["pairs"][0]
+    xa, pa, ra, xb, pb_, rb = recorded_pair(rec)
+    j = judge_pair(xa, pa, ra, xb, pb_, rb, float.fromhex(rec["tol"]))
+    assert rec["exact"]["gap_over_tol"] == 0.0 and j.verdict == "hit" and j.gap2_hi == 0
