@@ -222,8 +222,11 @@ def pair_world(
             trace[T_P + j] = v
         for j, v in enumerate((r00, r01, r02, r10, r11, r12, r20, r21, r22)):
             trace[T_R + j] = v
-    # Decided at tol plus the rounding of what follows (config.ROUNDING_ALLOWANCE; |d|_1 >= |d|, no root).
-    tol += ROUNDING_ALLOWANCE * eps * (ra + rb + abs(dx) + abs(dy) + abs(dz))
+    # Decided at tol plus the rounding of what follows (config.ROUNDING_ALLOWANCE; |d|_1 >= |d|, no root),
+    # and of the end-face centres k as stored (in float32 they are rounded at the size of k).
+    tol += (
+        ROUNDING_ALLOWANCE * eps * (ra + rb + abs(dx) + abs(dy) + abs(dz) + abs(acx) + abs(acy) + abs(bcx) + abs(bcy))
+    )
     if trace is None and surely_above_by_radius(pz, r20, r21, r22, rb, tol):  # the exit below, sooner
         return False, CASE_ABOVE, math.nan, math.nan, math.nan
     imax = extreme_vertex(bvx, bvy, beang, betab, sb, nb, r20, r21)  # b's vertex deepest into a
