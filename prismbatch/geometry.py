@@ -126,14 +126,18 @@ def halfplanes(xy):
 def point_in_prism_residual(xy, pos, rot, x, planes=None) -> float:
     """Largest violated half-space of world point ``x`` against one semi-infinite prism.
 
-    ``max(-t, max_i(n_i . q - h_i))`` with ``[q, t] = R^T (x - p)`` and the
+    ``max(-t, max_i(n_i . q - h_i))`` with ``[q, t] = R^-1 (x - p)`` and the
     unit outward edge normals n_i: <= 0 inside or on the body, > 0 outside,
     in length units (a lower bound of the Euclidean distance to the body,
     exact when a single face is violated). ``planes``: ``halfplanes(xy)``
     when the caller keeps them (a suite asking many points of one polygon).
+    R's inverse, not its transpose: a rotation is the exact affine map it is
+    given as (a float32 matrix is orthonormal only to about 1e-7, and its
+    transpose put points on the body 80 tol off it in float64 units).
     """
-    local = np.asarray(rot, dtype=float).reshape(3, 3).T @ (
-        np.asarray(x, dtype=float).reshape(3) - np.asarray(pos, dtype=float).reshape(3)
+    local = np.linalg.solve(
+        np.asarray(rot, dtype=float).reshape(3, 3),
+        np.asarray(x, dtype=float).reshape(3) - np.asarray(pos, dtype=float).reshape(3),
     )
     n, h = halfplanes(xy) if planes is None else planes
     return float(max(-local[2], np.max(n @ local[:2] - h)))

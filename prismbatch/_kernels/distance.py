@@ -34,7 +34,7 @@ from .batch import centres_and_tolerance, unpack
 from .gjk3d import gjk
 from .jit import jit, twins
 from .minkowski import cut_difference, point_a, support
-from .parallel import parallel_gap, parallel_overlap, tilted_overlap
+from .parallel import frames_rigid, parallel_gap, parallel_overlap, tilted_overlap
 from .vec3 import cross, diff, dot, normal, row, sub
 
 SEPARATED, TOUCHING, PENETRATING = 1, 0, -1
@@ -328,7 +328,8 @@ def pair_distance(P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, rtol, atol, eps, witnes
     acc = max(ACC_FRACTION * tol, ACC_EPS * EPS64 * L)
     loose = max(LOOSE_FRACTION * tol, acc)
     fr, cone, s, (ex, ey, ez), k = cut_difference(Ra, Rb, dx, dy, dz, L)
-    if ex == 0.0 and ey == 0.0 and ez == 0.0:
+    # (.parallel's answers are lengths in a's frame: taken only where the frames are rigid, frames_rigid)
+    if ex == 0.0 and ey == 0.0 and ez == 0.0 and frames_rigid(Ra, Rb, S, tol):
         # exactly parallel axes: apart in the plane, the gap is that of the end faces there and along the
         # axes (no cut box)
         lower, gap, nrm, pa = parallel_gap(P, ix, Ra, Rb, ox, oy, oz, dx, dy, dz, acc, s)
@@ -352,7 +353,7 @@ def pair_distance(P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, rtol, atol, eps, witnes
     else:
         depth, nx, ny, nz, code = epa(P, ix, fr, cone, W, I, m, k * acc, work)
         dist = -depth / k
-        if code == EPA_STOPPED and s > 0.0 and ex == 0.0 and ey == 0.0 and ez == 0.0:
+        if code == EPA_STOPPED and s > 0.0 and ex == 0.0 and ey == 0.0 and ez == 0.0 and frames_rigid(Ra, Rb, S, tol):
             # D is a prism along the axes: its depth is the end faces' planar overlap, exactly
             depth, nrm, pa = parallel_overlap(P, ix, Ra, Rb, ox, oy, oz, dx, dy, dz)
             if not witness:
@@ -366,6 +367,7 @@ def pair_distance(P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, rtol, atol, eps, witnes
                 or ix[1] * ix[3] <= SAT_SMALL
                 or work[3].shape[0] >= EPA_ROOM[-1]
             )
+            and frames_rigid(Ra, Rb, S, tol)
         ):
             # nearly parallel (D's facets nearly coplanar in a thin slab), small polygons, or out of EPA's
             # largest room: the depth by the separating-axis theorem over D's candidate facet normals, exact

@@ -41,7 +41,7 @@ from .distance import BOX, EPA_ROOM, block_of, pair_distance_any_room, pair_inde
 from .gjk3d import GJK_MAX_ITER, closest
 from .jit import first_call, jit, twins
 from .minkowski import cut_difference, support
-from .parallel import parallel_gap
+from .parallel import frames_rigid, parallel_gap
 from .planar import point_polygon_distance
 
 #: The decision thresholds sit this fraction of the pair tolerance either side of the margin.
@@ -110,7 +110,7 @@ def pair_margin(P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, margin, rtol, atol, eps, 
     # D_L as pair_distance builds it, in units of 1 / k (see cut_difference), as are hi_k and lo_k.
     fr, cone, s, (ex, ey, ez), k = cut_difference(Ra, Rb, dx, dy, dz, BOX * (ra + rb + centre_distance))
     hi_k, lo_k = k * hi, k * lo
-    if ex == 0.0 and ey == 0.0 and ez == 0.0:
+    if ex == 0.0 and ey == 0.0 and ez == 0.0 and frames_rigid(Ra, Rb, ra + rb + centre_distance, tol):
         # exactly parallel axes: apart in the plane, the gap as pair_distance takes it (parallel_gap)
         lower, gap, _, _ = parallel_gap(P, ix, Ra, Rb, ox, oy, oz, dx, dy, dz, SLACK * tol, s)
         if lower > 0.0 and gap <= hi:

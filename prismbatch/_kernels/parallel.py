@@ -23,6 +23,32 @@ from .batch import frame_inverse, relative_pose
 from .jit import jit
 from .planar import extreme_vertex, segment_closest
 
+#: The planar and separating-axis answers here are lengths in a's frame: they are taken only where both
+#: rotations are orthonormal to within this fraction of tol / S (:func:`frames_rigid`).
+RIGID_SHARE = 0.1
+
+
+@jit(inline="always")
+def _defect(R):
+    """The largest entry of |R^T R - I|."""
+    worst = 0.0
+    for i in range(3):
+        for j in range(i, 3):
+            g = R[0, i] * R[0, j] + R[1, i] * R[1, j] + R[2, i] * R[2, j] - (1.0 if i == j else 0.0)
+            worst = max(worst, abs(g))
+    return worst
+
+
+@jit(inline="always")
+def frames_rigid(Ra, Rb, S, tol):
+    """Whether lengths in a's frame are world lengths to within ``RIGID_SHARE * tol`` over the scale S:
+    the largest entry of R^T R - I of either rotation times S is at most that. A rotation is used as the
+    exact affine map it is; a float32 matrix given to the float64 path is orthonormal only to about 1e-7,
+    and the planar gap of identical such rotations was then up to 13 tol off (GJK and EPA, in world
+    coordinates, take those pairs). (Two calls, not a loop over (Ra, Rb): time_of_impact passes a's
+    pose in the input's dtype and b's in float64.)"""
+    return max(_defect(Ra), _defect(Rb)) * S <= RIGID_SHARE * tol
+
 
 @jit(inline="always")
 def normal_to_world(inv, ux, uy, uz):

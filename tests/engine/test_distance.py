@@ -424,6 +424,32 @@ def test_tiny_and_huge_objects_far_from_the_origin(size, offset):
     np.testing.assert_allclose(r.distance, size * base.distance, rtol=0, atol=10 * r.tol.max())
 
 
+def test_identical_float32_rotations_in_float64_against_the_exact_gap():
+    """Float32 rotation matrices (orthonormal to ~1e-7) given to the float64 path, the same matrix for a and b:
+    exactly parallel axes, whose planar answers (.parallel) measure lengths in a's frame. Those lengths were up
+    to 13 tol off the world's here; such pairs go to GJK and EPA, which work in world coordinates. Checked
+    against the exact gap (rational arithmetic) and the margin query against it."""
+    from prismbatch.lab.exact_gap import gap_bounds
+
+    rng = np.random.default_rng(44)
+    a, b = pb.Prism.regular(5, 1.0), pb.Prism.regular(6, 1.3, phase=0.2)
+    rot = Rotation.random(12, random_state=3).as_matrix().astype(np.float32)
+    pos_a = rng.uniform(-3, 3, (12, 3)).astype(np.float32)
+    pos_b = (pos_a + rng.uniform(-4, 4, (12, 3))).astype(np.float32)
+    r = pb.distance(a, b, pos_a, rot, pos_b, rot, witness=True)
+    apart = np.flatnonzero(r.status == SEPARATED)
+    assert len(apart) >= 6
+    for i in apart:
+        args = (a.xy, pos_a[i].astype(float), rot[i].astype(float), b.xy, pos_b[i].astype(float), rot[i].astype(float))
+        g = gap_bounds(*args)
+        lo, hi = math.sqrt(g.lo), math.sqrt(g.hi)
+        assert lo - 10 * r.tol[i] <= r.distance[i] <= hi + 10 * r.tol[i], i
+        for pt, xy, p in ((r.point_a[i], a.xy, pos_a[i]), (r.point_b[i], b.xy, pos_b[i])):
+            assert pb.geometry.point_in_prism_residual(xy, p.astype(float), rot[i].astype(float), pt) <= r.tol[i]
+        for m, want in ((lo + 3 * r.tol[i], True), (hi - 3 * r.tol[i], False)):
+            assert pb.collide(a, b, pos_a[i], rot[i], pos_b[i], rot[i], margin=m).hit[0] == want, i
+
+
 @pytest.mark.parametrize("scale", [2.0**-330, 1e-99, 1e-80, 1e80, 1e99, 2.0**328])
 def test_scales_at_the_ends_of_the_accepted_range(scale):
     """Shapes and positions scaled towards 1e-100 and 1e100 (sizes the API accepts): the distance, its

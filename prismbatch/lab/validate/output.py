@@ -149,7 +149,6 @@ def _case_rows(result):
     return rows
 
 
-
 def _run_text(execution):
     """How the run was executed, e.g. "in-process, 1 worker(s)" (an interrupted run has no worker count)."""
     workers = execution.get("workers")
