@@ -421,8 +421,8 @@ def collide(
         prisms' local frames, eps: machine epsilon of ``dtype``). Bodies within it count as
         colliding; a reported hit means the bodies are within sqrt(2) (tol + rho) of each
         other (1.8 (tol + rho) for axes perpendicular within tol/4 over a's reach), where
-        ``rho = 4 eps (R_a + R_b + |c_b - c_a|_1)`` is the rounding allowance the test is
-        decided with (:data:`~prismbatch.config.ROUNDING_ALLOWANCE`).
+        ``rho = 4 eps (R_a + R_b + |c_b - c_a|_1 + |k_a|_1 + |k_b|_1)`` is the rounding allowance
+        the test is decided with (:data:`~prismbatch.config.ROUNDING_ALLOWANCE`).
     dtype : {numpy.float64, numpy.float32}, optional
         Precision of the stored shapes and poses (float32 halves memory
         traffic; its default rtol is 1e-5).
