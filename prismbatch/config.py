@@ -17,7 +17,7 @@ DEFAULT_RTOL = {np.dtype(np.float64): 1e-9, np.dtype(np.float32): 1e-5}
 #: not at tol: the relative pose and the planar gaps it computes from the poses carry rounding of about
 #: eps S, and an adversarial run found certified gaps up to 2.3e-7 tol under tol (float64 defaults, about
 #: 1 eps S) computed above it and missed; the end-face centres k are stored in the working precision, so in
-#: float32 they move the polygons by up to eps |k| / 2 (gaps of 0.971 tol missed with |k| of 1e2 to 1e4).
+#: float32 they move the polygons by up to ``eps |k| / 2`` (gaps of 0.971 tol missed with ``|k|`` of 1e2 to 1e4).
 #: With the allowance every pair within tol is a hit; a hit may then be up to sqrt(2) times the allowance
 #: farther apart (the README's Tolerance section).
 ROUNDING_ALLOWANCE = 4.0
