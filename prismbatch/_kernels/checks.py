@@ -30,6 +30,20 @@ def _rotation_ok(R, tol):
     return ok & (det > 0.0)
 
 
+@jit(inline="always")
+def orthonormality_error(R):
+    """The largest entry of ``|R^T R - I|``, in float64 whatever R's dtype."""
+    f = np.float64
+    err = 0.0
+    for j in range(3):
+        for k in range(j, 3):
+            g = f(R[0, j]) * f(R[0, k]) + f(R[1, j]) * f(R[1, k]) + f(R[2, j]) * f(R[2, k])
+            if j == k:
+                g -= 1.0
+            err = max(err, abs(g))
+    return err
+
+
 @jit
 def _rotation_problem(R, tol):
     """(kind, value) of a matrix :func:`_rotation_ok` rejects: 1 non-finite, 2 not orthonormal (the
@@ -39,13 +53,7 @@ def _rotation_problem(R, tol):
         for k in range(3):
             if not math.isfinite(R[j, k]):
                 return 1, 0.0
-    err = 0.0
-    for j in range(3):
-        for k in range(3):
-            g = f(R[0, j]) * f(R[0, k]) + f(R[1, j]) * f(R[1, k]) + f(R[2, j]) * f(R[2, k])
-            if j == k:
-                g -= 1.0
-            err = max(err, abs(g))
+    err = orthonormality_error(R)
     if err > tol:
         return 2, err
     det = (

@@ -81,14 +81,14 @@ def pair_margin(P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, margin, rtol, atol, eps, 
     ox, oy, oz, dx, dy, dz, tol = centres_and_tolerance(
         ca[0], ca[1], cb[0], cb[1], Pa, Ra, Pb, Rb, ra, rb, rtol, atol, eps
     )
-    centre_distance = math.sqrt(dx * dx + dy * dy + dz * dz)
+    S = ra + rb + math.sqrt(dx * dx + dy * dy + dz * dz)  # the pair's scale
     hi = margin + SLACK * tol
     lo = margin - SLACK * tol
     dax, day, daz = np.float64(Ra[0, 2]), np.float64(Ra[1, 2]), np.float64(Ra[2, 2])
     dbx, dby, dbz = np.float64(Rb[0, 2]), np.float64(Rb[1, 2]), np.float64(Rb[2, 2])
     pz = dax * dx + day * dy + daz * dz  # b's centre along a's axis (a lies at pz >= 0)
     apart = dax * dbx + day * dby + daz * dbz <= 0.0
-    far = lo + FAR_SLACK * (ra + rb + centre_distance)
+    far = lo + FAR_SLACK * S
     if apart:
         # Neither body reaches over the other's end plane along its axis, so each end plane bounds the
         # gap: b lies below pz + rb along d_a, a below ra - d_b.(c_b - c_a) along d_b. Far pairs (the
@@ -103,14 +103,14 @@ def pair_margin(P, ix, ca, cb, ra, rb, Pa, Ra, Pb, Rb, margin, rtol, atol, eps, 
         # The same for the first direction u, by the end faces' radii: D's support there is at most
         # -u.d + (ra + rb) |u| (the cone's part is 0 where u.d_a <= 0 <= u.d_b; with the axes apart, each
         # point of the cut cone is s d_a - t d_b with s, t <= 2 L, which bounds what rounding leaves of it).
-        cone_part = 2.0 * BOX * (ra + rb + centre_distance)
+        cone_part = 2.0 * BOX * S
         cone_part *= max(ux * dax + uy * day + uz * daz, 0.0) + max(-(ux * dbx + uy * dby + uz * dbz), 0.0)
         if (ux * dx + uy * dy + uz * dz - cone_part) / un - (ra + rb) > far:
             return False, DECIDED
     # D_L as pair_distance builds it, in units of 1 / k (see cut_difference), as are hi_k and lo_k.
-    fr, cone, s, (ex, ey, ez), k = cut_difference(Ra, Rb, dx, dy, dz, BOX * (ra + rb + centre_distance))
+    fr, cone, s, (ex, ey, ez), k = cut_difference(Ra, Rb, dx, dy, dz, BOX * S)
     hi_k, lo_k = k * hi, k * lo
-    if ex == 0.0 and ey == 0.0 and ez == 0.0 and frames_rigid(Ra, Rb, ra + rb + centre_distance, tol):
+    if ex == 0.0 and ey == 0.0 and ez == 0.0 and frames_rigid(Ra, Rb, S, tol):
         # exactly parallel axes: apart in the plane, the gap as pair_distance takes it (parallel_gap)
         lower, gap, _, _ = parallel_gap(P, ix, Ra, Rb, ox, oy, oz, dx, dy, dz, SLACK * tol, s)
         if lower > 0.0 and gap <= hi:

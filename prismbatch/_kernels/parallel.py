@@ -20,23 +20,13 @@ exactly parallel; nearly parallel, the whole query takes about 1 ms for two 3600
 import math
 
 from .batch import frame_inverse, relative_pose
+from .checks import orthonormality_error
 from .jit import jit
 from .planar import extreme_vertex, segment_closest
 
 #: The planar and separating-axis answers here are lengths in a's frame: they are taken only where both
 #: rotations are orthonormal to within this fraction of tol / S (:func:`frames_rigid`).
 RIGID_SHARE = 0.1
-
-
-@jit(inline="always")
-def _defect(R):
-    """The largest entry of |R^T R - I|."""
-    worst = 0.0
-    for i in range(3):
-        for j in range(i, 3):
-            g = R[0, i] * R[0, j] + R[1, i] * R[1, j] + R[2, i] * R[2, j] - (1.0 if i == j else 0.0)
-            worst = max(worst, abs(g))
-    return worst
 
 
 @jit(inline="always")
@@ -47,7 +37,7 @@ def frames_rigid(Ra, Rb, S, tol):
     and the planar gap of identical such rotations was then up to 13 tol off (GJK and EPA, in world
     coordinates, take those pairs). (Two calls, not a loop over (Ra, Rb): time_of_impact passes a's
     pose in the input's dtype and b's in float64.)"""
-    return max(_defect(Ra), _defect(Rb)) * S <= RIGID_SHARE * tol
+    return max(orthonormality_error(Ra), orthonormality_error(Rb)) * S <= RIGID_SHARE * tol
 
 
 @jit(inline="always")
