@@ -25,7 +25,9 @@ for two 360-gons, a few seconds for a 36-gon against a 3600-gon.
 * :func:`signed_distance_reference`: SAT when the bodies overlap, the feature gap when they
   do not.
 
-Rotations are assumed orthonormal to rounding (local distances are world distances).
+A rotation is taken as the exact linear map it is given as (a float32 rotation read in float64 is
+orthonormal only to about 1e-7): world normals are mapped by its inverse transpose and every length is
+measured in the world.
 """
 
 from __future__ import annotations
@@ -33,6 +35,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..geometry import ccw
+from .highs import import_highspy, new_highs
 
 __all__ = [
     "Body",
@@ -43,22 +46,10 @@ __all__ = [
     "signed_distance_reference",
     "signed_distance_of",
     "residual",
-    "HIGHSPY_MISSING",
 ]
-
-HIGHSPY_MISSING = "highspy is not installed (the QP of the distance reference): pip install 'prismbatch[exact]'"
 
 #: Rows (axes or edge pairs) handled at once: bounds the memory of the brute force.
 _SLICE = 200_000
-
-
-def import_highspy():
-    """The ``highspy`` module; ImportError with the pip command when it is missing."""
-    try:
-        import highspy  # noqa: PLC0415
-    except ImportError as exc:
-        raise ImportError(HIGHSPY_MISSING) from exc
-    return highspy
 
 
 class Body:
@@ -78,7 +69,16 @@ class Body:
         n_loc = np.column_stack([e[:, 1], -e[:, 0]]) / np.hypot(e[:, 0], e[:, 1])[:, None]
         self.n_loc = n_loc  # outward unit edge normals, local
         self.h_loc = np.einsum("ij,ij->i", n_loc, xy)
-        self.N = n_loc @ self.rot[:, :2].T
+        # World normals of the end plane and side faces: R^-T times the local ones, not R (float32
+        # rotations in float64 are orthonormal only to 1e-7; mapping by R left the gaps 2-15 tol off).
+        # A local offset (n.u - h) over |R^-T n| is the world distance to the plane.
+        inv = np.linalg.inv(self.rot)
+        m = inv[2]  # e_z^T R^-1
+        self.m_scale = float(np.linalg.norm(m))
+        self.m = m / self.m_scale  # unit, into the body (m.d = 1 / m_scale > 0)
+        N = n_loc @ inv[:2]
+        self.N_scale = np.linalg.norm(N, axis=1)
+        self.N = N / self.N_scale[:, None]
 
     def local(self, p):
         """Local coordinates (q_x, q_y, t) of world points p (k, 3), by the inverse of the matrix as given
@@ -88,9 +88,11 @@ class Body:
 
 
 def residual(body, p):
-    """Largest violated half-space of world points p (k, 3): <= 0 inside, a lower bound of the distance."""
+    """Largest violated half-space of world points p (k, 3), in world lengths: <= 0 inside, a lower
+    bound of the distance."""
     loc = body.local(p)
-    return np.maximum(-loc[:, 2], (loc[:, :2] @ body.n_loc.T - body.h_loc).max(axis=1))
+    side = (loc[:, :2] @ body.n_loc.T - body.h_loc) / body.N_scale
+    return np.maximum(-loc[:, 2] / body.m_scale, side.max(axis=1))
 
 
 def _unit_rows(U):
@@ -122,8 +124,8 @@ def sat_separation(A, B):
     s = 1.0 if A.d @ B.d >= 0 else -1.0
     e = B.d - s * A.d
     groups = [  # (axes, the test each must pass)
-        (-A.d[None], "both"),
-        (B.d[None], "both"),
+        (-A.m[None], "both"),
+        (B.m[None], "both"),
         (A.N, "across_a"),
         (-B.N, "across_b"),
         (np.cross(A.E[:, None, :], B.E[None, :, :]).reshape(-1, 3), "both"),
@@ -237,22 +239,38 @@ def _edge_pairs(A, B, edges_a, edges_b, i, j):
 
 def _vertex_faces(P, body):
     """(distance, point, foot): points P (k, 3) to the faces of ``body`` whose plane foot lies in the face."""
+    step = max(1, _SLICE // len(body.V))
+    best = (np.inf, None, None)
+    for lo in range(0, len(P), step):
+        r = _vertex_faces_slice(P[lo : lo + step], body)
+        if r[0] < best[0]:
+            best = r
+    return best
+
+
+def _vertex_faces_slice(P, body):
+    """:func:`_vertex_faces` of a few points (memory: points times faces)."""
     loc = body.local(P)
     q, t = loc[:, :2], loc[:, 2]
     cands = []
-    inside = (q @ body.n_loc.T - body.h_loc <= 0).all(axis=1)  # end face
+    # end face: the foot along its world normal m (for a rigid rotation, along d: q stays)
+    h = t / body.m_scale
+    foot = P - h[:, None] * body.m
+    inside = (body.local(foot)[:, :2] @ body.n_loc.T - body.h_loc <= 0).all(axis=1)
     if inside.any():
         k = np.flatnonzero(inside)
-        cands.append((np.abs(t[k]), P[k], P[k] - t[k, None] * body.d))
-    # side faces: |n.q - h| where t >= 0 and the foot lies on the edge segment
+        cands.append((np.abs(h[k]), P[k], foot[k]))
+    # side faces: the world offset where the foot has t >= 0 and lies on the edge segment
     v = body.xy
     e = np.roll(v, -1, axis=0) - v
-    lam = ((q[:, None, :] - v[None]) * e[None]).sum(axis=2) / (e * e).sum(axis=1)[None]
-    off = q @ body.n_loc.T - body.h_loc
-    ok = (t[:, None] >= 0) & (lam >= 0) & (lam <= 1)
+    off = (q @ body.n_loc.T - body.h_loc) / body.N_scale
+    feet = P[:, None, :] - off[:, :, None] * body.N[None]  # (k, n, 3)
+    floc = body.local(feet.reshape(-1, 3)).reshape(feet.shape)
+    lam = ((floc[..., :2] - v[None]) * e[None]).sum(axis=2) / (e * e).sum(axis=1)[None]
+    ok = (floc[..., 2] >= 0) & (lam >= 0) & (lam <= 1)
     if ok.any():
         k, f = np.nonzero(ok)
-        cands.append((np.abs(off[k, f]), P[k], P[k] - off[k, f, None] * body.N[f]))
+        cands.append((np.abs(off[k, f]), P[k], feet[k, f]))
     return _closest(cands)
 
 
@@ -317,9 +335,7 @@ def gap_qp(A, B, time_limit=30.0):
     model = highspy.HighsModel()
     model.lp_ = lp
     model.hessian_ = hess
-    h = highspy.Highs()
-    h.setOptionValue("output_flag", False)
-    h.setOptionValue("time_limit", float(time_limit))
+    h = new_highs(time_limit)
     h.passModel(model)
     h.run()
     if h.getModelStatus() != highspy.HighsModelStatus.kOptimal:

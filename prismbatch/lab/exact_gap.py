@@ -24,6 +24,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..geometry import exact_area2
+from .highs import import_highspy, new_highs
 
 __all__ = ["Judgement", "judge_pair", "gap_bounds", "check_contact", "exact_quat_matrix"]
 
@@ -266,14 +267,11 @@ class Gap(NamedTuple):
 
 def _qp(M, r, rows, x0, step):
     """min |M (x0 + step y) - r|^2 over y, s.t. rows (var offset, normal, offset) and t >= 0 (HiGHS)."""
-    import highspy
-
+    highspy = import_highspy()
     r0 = (r - M @ x0) / step
     Q = M.T @ M
     c = -(M.T @ r0)
-    h = highspy.Highs()
-    h.setOptionValue("output_flag", False)
-    h.setOptionValue("time_limit", 2.0)  # degenerate QPs can cycle; the exact stage decides anyway
+    h = new_highs(2.0)  # (degenerate QPs can cycle; the exact stage decides anyway)
     h.setOptionValue("qp_iteration_limit", 20000)
     inf = highspy.kHighsInf
     lp = highspy.HighsLp()

@@ -57,3 +57,45 @@ def test_reference_sat_on_an_analytic_overlap():
         assert sep == pytest.approx(-width, rel=1e-12)
         r = distance(pb.Prism(xy), pb.Prism(xy), [1.0, 2.0, 3.0], Q, [1.0, 2.0, 3.0], Q)
         assert r.distance[0] == pytest.approx(-width, abs=10 * r.tol[0])
+
+
+def test_the_qp_solver_prints_nothing():
+    """highspy's constructor writes a licence banner to file descriptor 1 in a fresh process; the lab's
+    solvers must not (``prismbatch validate ... > report`` had it in the report)."""
+    import subprocess
+    import sys
+
+    code = "from prismbatch.lab.highs import new_highs; new_highs(1.0); new_highs(1.0); print('done')"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out == "done\n"
+
+
+def test_float32_rotations_read_as_float64_against_the_exact_gap():
+    """A float32 rotation read in float64 is orthonormal only to about 1e-7, and the package takes it as the
+    exact linear map it is. The references must too: with side normals mapped by R instead of its inverse
+    transpose, their gaps were up to 6 tol off the exact gap (rational arithmetic) and their depths up to 20
+    tol off prismbatch's. Separated pairs against the exact bounds; overlapping ones by their sign."""
+    import math
+
+    from prismbatch.lab.distance_ref import signed_distance_reference
+    from prismbatch.lab.exact_gap import gap_bounds
+
+    rng = np.random.default_rng(7)
+    a, b = pb.Prism.regular(5, 1.0), pb.Prism.regular(6, 1.3, phase=0.2)
+    n_sep = 0
+    for k in range(40):
+        f32 = lambda x: np.asarray(x, dtype=np.float32).astype(float)  # noqa: E731
+        ra = f32(Rotation.random(random_state=rng.integers(1 << 30)).as_matrix())
+        rb = ra if k % 3 == 0 else f32(Rotation.random(random_state=rng.integers(1 << 30)).as_matrix())
+        pa = f32(rng.uniform(-3, 3, 3))
+        pb_ = f32(pa + rng.uniform(-3, 3, 3))
+        tol = distance(a, b, *(np.float32(x) for x in (pa, ra, pb_, rb))).tol[0]
+        value, kind = signed_distance_reference(a.xy, pa, ra, b.xy, pb_, rb)
+        g = gap_bounds(a.xy, pa, ra, b.xy, pb_, rb)
+        if g.lo > 0:
+            n_sep += 1
+            assert kind == "features", k
+            assert math.sqrt(g.lo) - 1e-3 * tol <= value <= math.sqrt(g.hi) + 1e-3 * tol, k
+        else:
+            assert value <= tol, k
+    assert n_sep >= 15

@@ -53,7 +53,7 @@ def _require_extras(cfg):
 
         import_fcl()
     if cfg["distance_pairs"] > 0:  # the reference's QP cross-check
-        from ..distance_ref import import_highspy
+        from ..highs import import_highspy
 
         import_highspy()
 
