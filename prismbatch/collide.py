@@ -7,6 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._kernels import batch as _batch
+from ._kernels import one_pair as _one_pair
 from ._kernels.checks import poses_ok
 from ._kernels.distance_pair import distance_pair
 from ._kernels.projection import CASES
@@ -118,7 +119,7 @@ class Collider(OnePairQueries):
         # Orthonormality tolerance of poses of the compute dtype, which the one-pair kernels check
         # (others are parsed by as_pose, with the rule of their own dtype).
         self._ortho_tol = ortho_tolerance(dt, dt)
-        self._pair_kernel = _batch.collide_pair[dt]
+        self._pair_kernel = _one_pair.collide_pair[dt]
         self._distance_kernel = distance_pair[dt]
         self._distance_fast = None  # (bundle, result builder), set by the first one-pair distance
         self._bundles = {}  # (ortho_tol_a, ortho_tol_b) -> pair bundle of the one-pair kernels (single prisms)

@@ -54,6 +54,17 @@ def _check_tol(tol, n):
     return t
 
 
+def _norms(err):
+    """Euclidean norms of (N, k) rows, |x| of (N,) norms, or a scalar's as (1,): scaled, so that norms
+    of 1e-200 or 1e200 neither underflow nor overflow in their squares."""
+    if err.ndim <= 1:
+        return np.abs(err).reshape(-1)
+    flat = err.reshape(err.shape[0], int(np.prod(err.shape[1:])))
+    big = np.abs(flat).max(axis=1, initial=0.0)
+    unit = np.where(big > 0.0, big, 1.0)
+    return big * np.sqrt(np.square(flat / unit[:, None]).sum(axis=1))
+
+
 def _force(eps, errn, direction):
     """``eps * |state error| * direction``; ValueError naming the first contact where it is not finite."""
     with np.errstate(over="ignore", invalid="ignore"):
@@ -110,8 +121,9 @@ def detach(shape_a, contact, pos_a, rot_a, rot_b, state_error, *, eps=10.0, tol=
         b's rotations (its axis d_b enters rows 1 and 2).
     state_error : array_like
         The state error ``x - x_d``; its Euclidean norm scales the force.
-        (N, k) rows for N pairs, or (N,) norms; for a single pair (one
-        contact row) a (k,) vector is that pair's error.
+        (N, k) rows for N pairs, or (N,) norms; for a single pair (a
+        batch of one: one contact and single poses) a (k,) vector is that
+        pair's error.
     eps : float, optional
         The detach gain ε (the paper uses 10): a real scalar, finite and
         >= 0, and small enough that ``eps * |state error|`` is finite for
@@ -120,8 +132,14 @@ def detach(shape_a, contact, pos_a, rot_a, rot_b, state_error, *, eps=10.0, tol=
         Distance within which the contact counts as on a feature (vertex,
         edge, face): one value for every pair, or one per pair; finite and
         >= 0. Default: 1e-9 times a's end-face radius plus a rounding
-        floor; pass the pair tolerance of :func:`collide` or a physical
-        tolerance for simulated contacts.
+        floor (of a's position and its end face's offset from a's own
+        origin); pass the pair tolerance of :func:`collide`
+        (:func:`prismbatch.geometry.pair_scale_tolerance`) or a physical
+        tolerance for simulated contacts. A contact just outside a (by less
+        than the refusal margin) takes the class of a's nearest feature.
+        The nearest vertex and edge are searched around the contact's polar
+        wedge (its four vertices and three edges): a tol much larger than
+        a's edges there can miss a nearer one.
     parallel : bool or None, optional
         Spread pairs over Numba's threads; None (default) does so for large
         batches only (thread start-up costs more than small batches).
@@ -159,20 +177,20 @@ def detach(shape_a, contact, pos_a, rot_a, rot_b, state_error, *, eps=10.0, tol=
     err = as_real_array(state_error, "state_error").astype(np.float64)
     if not np.all(np.isfinite(err)):
         raise ValueError("state_error contains NaN or inf")
-    if err.ndim == 1 and len(c) == 1:
-        err = err[None, :]  # one pair's error vector
-    # (N, k) rows -> their norms, (N,) -> as given (abs), a scalar -> one value
-    errn = np.sqrt(np.square(err).sum(axis=tuple(range(1, err.ndim)))) if err.ndim >= 1 else np.abs(err).reshape(1)
     n = common_batch_size(pa, ra, np.zeros(3), rb, n_shapes=len(set_a) if per else None)
     if n == 1:
         n = len(c)  # the contacts set the batch when every pose is single
+    if err.ndim == 1 and n == 1:
+        err = err[None, :]  # the one pair's error vector (with more pairs, (N,) are their norms)
+    errn = _norms(err)
     if len(c) not in (1, n) or len(errn) not in (1, n):
         raise ValueError(
             f"batch sizes do not match: contact has {len(c)} rows, state_error {len(errn)}, poses and shapes {n}"
         )
     eps = real_scalar(eps, "eps", 0.0)
-    if tol is None:
-        tol_arr = 1e-9 * set_a.radius + 16 * np.finfo(np.float64).eps * (set_a.radius + np.abs(pa).max(initial=0.0))
+    if tol is None:  # (the rounding floor counts the end face's offset from a's own origin, as collide's does)
+        reach = set_a.radius + np.abs(set_a.centre).sum(axis=1) + np.abs(pa).max(initial=0.0)
+        tol_arr = 1e-9 * set_a.radius + 16 * np.finfo(np.float64).eps * reach
     else:
         tol_arr = _check_tol(tol, n)
     cls = np.empty(n, dtype=np.int8)

@@ -1,6 +1,6 @@
 """One pose pair at the lowest latency: :meth:`Collider.collide_pair <prismbatch.Collider.collide_pair>`.
 
-The pair's checks and test run in one compiled call (``prismbatch._kernels.batch.collide_pair``), closed to
+The pair's checks and test run in one compiled call (``prismbatch._kernels.one_pair.collide_pair``), closed to
 every signature but its own, so that the dispatcher's type checks stay short; what it does not take is
 converted here first. :class:`OnePairQueries` holds the methods :class:`~prismbatch.Collider` inherits;
 :func:`kernel_array` is the one conversion of pose arrays for every kernel.
@@ -13,9 +13,9 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ._kernels import batch as _batch
-from ._kernels.batch import CONTACT_TYPE, PAIR_SHAPE_PROBLEM, close_kernel, pair_signature
+from ._kernels import one_pair as _one_pair
 from ._kernels.distance_pair import WITNESS_TYPE, distance_pair
+from ._kernels.one_pair import CONTACT_TYPE, PAIR_SHAPE_PROBLEM, close_kernel, pair_signature
 from ._kernels.projection import CASES
 from .poses import as_pose, position_message, rotation_message, transforms_as_written
 
@@ -88,7 +88,7 @@ class OnePairQueries:
         key = (ortho_tol_a, ortho_tol_b)
         bundle = self._bundles.get(key)
         if bundle is None:
-            bundle = _batch.pair_bundle(self._a, self._b, self.rtol, self.atol, self._eps, *key, self._max_magnitude)
+            bundle = _one_pair.pair_bundle(self._a, self._b, self.rtol, self.atol, self._eps, *key, self._max_magnitude)
             self._bundles[key] = bundle
         return bundle
 
@@ -109,7 +109,7 @@ class OnePairQueries:
         Pa, Ra, ta = self._one_pose(pos_a, rot_a, quat_order, "a")
         Pb, Rb, tb = self._one_pose(pos_b, rot_b, quat_order, "b")
         contact = np.empty(3)
-        closed(_batch.collide_pair[self.dtype], self.dtype, CONTACT_TYPE)
+        closed(_one_pair.collide_pair[self.dtype], self.dtype, CONTACT_TYPE)
         code = self._pair_kernel(self._pair_bundle(ta, tb), Pa, Ra, Pb, Rb, contact)
         self._fast_bundle = self._pair_bundle(self._ortho_tol, self._ortho_tol)
         if code < 0:
@@ -207,7 +207,7 @@ _closing = threading.Lock()
 
 def closed(kernel, dtype, last):
     """Compile (or load from the cache) the one-pair ``kernel`` for its one signature
-    (:func:`~prismbatch._kernels.batch.pair_signature` of ``dtype`` and ``last``) and close it to others,
+    (:func:`~prismbatch._kernels.one_pair.pair_signature` of ``dtype`` and ``last``) and close it to others,
     on its first use in the process; first calls from several threads: one compiles, the others wait."""
     if kernel not in _closed:  # (a set lookup: building the signature costs some 14 µs)
         with _closing:

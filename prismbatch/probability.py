@@ -76,8 +76,9 @@ from ._kernels.batch import use_parallel
 from ._kernels.jit import first_call
 from ._kernels.probability import count_parallel, count_serial, poses_usable, sample_parallel, sample_serial
 from ._kernels.streams import ZIGGURAT, spawned_keys
-from .checks import as_real_array, check_flag, integer, real_scalar
+from .checks import check_flag, integer, real_scalar
 from .config import SUPPORTED_RANGE
+from .covariance import noise_factor, rotation_free
 from .importance import DEFENSIVE, SPREAD, Tally, centres, design_points, design_starts, plain_intervals
 from .poses import as_pose, broadcast_poses
 from .results import BatchResult
@@ -113,9 +114,6 @@ DEFAULT_MAX_SAMPLES = 1_000_000
 NEGLIGIBLE = 1e-300
 LOG_NEGLIGIBLE = math.log(NEGLIGIBLE)
 # Tolerances on the correlation matrix D^-1 C D^-1 (D the standard deviations; units drop out):
-_EIG_RTOL = 1e-12  # eigenvalues below this fraction of the largest count as 0
-_SYM_RTOL = 1e-9  # asymmetry tolerated
-_PSD_RTOL = 1e-9  # negative eigenvalues tolerated, relative to the largest
 _METHOD_NAMES = ("auto", "plain", "importance")
 
 
@@ -299,12 +297,12 @@ def estimate(col, pos_a, rot_a, pos_b, rot_b, cov_b, *, cov_a, rel_error, confid
     # Contact is invariant under a shift of both bodies: sampling about a's nominal position keeps
     # collide's rounding band (4 eps |position|) from counting as contact far from the origin.
     pa, pb = np.zeros_like(pa), pb - pa
-    L = _noise_factor(cov_b, "cov_b", n)
-    translation_only = _rotation_free(cov_b)
+    L = noise_factor(cov_b, "cov_b", n)
+    translation_only = rotation_free(cov_b)
     if cov_a is not None:
-        La = _noise_factor(cov_a, "cov_a", n)
+        La = noise_factor(cov_a, "cov_a", n)
         L = np.concatenate((np.concatenate((L, np.zeros_like(L)), 2), np.concatenate((np.zeros_like(La), La), 2)), 1)
-        translation_only &= _rotation_free(cov_a)
+        translation_only &= rotation_free(cov_a)
     keys = _query_keys(query_index, n)
     run = _Run(col, (pa, ra, pb, rb), L, NormalDist().inv_cdf(0.5 + 0.5 * confidence), rel_error, parallel)
     return run.estimate(method, translation_only, max_samples, seed, keys, confidence)
@@ -318,54 +316,6 @@ def broadcast_queries(pos_a, rot_a, pos_b, rot_b, cov_b, cov_a):
     ]
     n, name = batched[0] if batched else (None, "")
     return broadcast_poses(pos_a, rot_a, pos_b, rot_b, n_shapes=n, shapes_name=name)
-
-
-def _noise_factor(cov, name, n):
-    """``(n, 6, 6)`` factors L with ``L L^T = cov`` (zero columns where the covariance is singular)."""
-    c = as_real_array(cov, name).astype(np.float64)
-    if c.shape not in ((6, 6), (n, 6, 6)):
-        raise ValueError(f"{name} has shape {c.shape}; expected (6, 6) or (N, 6, 6) with N = {n} queries")
-    batched = c.ndim == 3
-    c = c.reshape(-1, 6, 6)
-    where = lambda i: f"{name}[{i}]" if batched else name  # noqa: E731
-    finite = np.isfinite(c).all(axis=(1, 2))
-    if not finite.all():
-        raise ValueError(f"{where(int(np.argmin(finite)))} has non-finite entries")
-    var = np.diagonal(c, axis1=1, axis2=2)
-    bad = (var < 0).any(axis=1)
-    if bad.any():
-        i = int(np.argmax(bad))
-        raise ValueError(f"{where(i)} is not positive semidefinite (variance {var[i].min():.3g} on its diagonal)")
-    # Tolerances apply to the correlation matrix: translation and rotation have different units,
-    # and a cut relative to the largest variance would drop a small body's translations.
-    scale = np.sqrt(np.where(var > 0, var, 1.0))
-    r = c / scale[:, :, None] / scale[:, None, :]
-    asym = np.abs(r - r.transpose(0, 2, 1)).max(axis=(1, 2))
-    bad = asym > _SYM_RTOL
-    if bad.any():
-        i = int(np.argmax(bad))
-        raise ValueError(
-            f"{where(i)} is not symmetric (max |C - C^T| = {asym[i]:.3g} of the standard deviations' product)"
-        )
-    lam, V = np.linalg.eigh(0.5 * (r + r.transpose(0, 2, 1)))
-    top = np.maximum(lam[:, -1], 0.0)
-    bad = lam[:, 0] < -_PSD_RTOL * top - 1e-300
-    if bad.any():
-        i = int(np.argmax(bad))
-        raise ValueError(
-            f"{where(i)} is not positive semidefinite (its correlation matrix has eigenvalue {lam[i, 0]:.3g})"
-        )
-    lam = np.where(lam > _EIG_RTOL * top[:, None], lam, 0.0)
-    L = scale[:, :, None] * V * np.sqrt(lam)[:, None, :]
-    if L.shape[0] != n:
-        L = np.broadcast_to(L, (n, 6, 6))
-    # Writeable (a broadcast view is read-only, and Numba compiles the sampling loops again for that)
-    return np.require(L, requirements=("C", "W"))
-
-
-def _rotation_free(cov):
-    """True if the covariance has no rotational noise (its lower-right 3x3 block is 0)."""
-    return not np.any(np.asarray(cov, dtype=np.float64)[..., 3:, 3:])
 
 
 def _query_keys(query_index, n):

@@ -92,8 +92,21 @@ def _kernel_data(ccw, centre):
     return v, eang, etab, vang, 1.0 / elen
 
 
-def _radii(ccw, centres):
-    """Bounding radii (m,) of polygons (m, n, 2) about their centres (m, 2)."""
+def _radii(ccw, centres, names):
+    """Bounding radii (m,) of polygons (m, n, 2) about their centres (m, 2).
+
+    ValueError naming the first polygon (``names(j)``) whose extent overflows float64 (coordinates
+    near its limit, 1.8e308): its edges, and the kernels' tables of them, would be infinite.
+    """
+    with np.errstate(over="ignore", invalid="ignore"):
+        extent = np.ptp(ccw, axis=1)
+        span = np.hypot(extent[:, 0], extent[:, 1])  # bounds every edge and twice every radius
+    if not np.isfinite(span).all():
+        j = int(np.argmin(np.isfinite(span)))
+        raise ValueError(
+            f"{names(j)}: its extent overflows float64 (vertices up to {np.abs(ccw[j]).max():.3g} from the "
+            "origin: its bounding box's diagonal is beyond 1.8e308); rescale the units"
+        )
     return np.hypot(ccw[..., 0] - centres[:, :1], ccw[..., 1] - centres[:, 1:]).max(axis=1)
 
 
@@ -127,7 +140,7 @@ class Prism:
         check_memory(n * _BYTES_PER_VERTEX, f"{name} of {n:,} vertices")
         ccw = validate_polygon(xy, name=name)
         centre = _centroids(ccw[None])[0]
-        self._set(ccw, centre, float(_radii(ccw[None], centre[None])[0]))
+        self._set(ccw, centre, float(_radii(ccw[None], centre[None], lambda j: name)[0]))
 
     @classmethod
     def _checked(cls, ccw, centre, radius):
@@ -370,7 +383,8 @@ def _build_groups(polygons):
         if len(ok):
             ccw = checks.ccw[ok]
             centres = _centroids(ccw)
-            parts.setdefault(ccw.shape[1], []).append((np.asarray(ks)[ok], ccw, centres, _radii(ccw, centres)))
+            radii = _radii(ccw, centres, lambda j, ks=np.asarray(ks)[ok]: f"polygon {ks[j]}")
+            parts.setdefault(ccw.shape[1], []).append((np.asarray(ks)[ok], ccw, centres, radii))
         for j in np.flatnonzero(~checks.ok):
             errors[ks[j]] = (checks, j, stack[j])
     if errors:

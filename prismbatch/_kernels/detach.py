@@ -10,6 +10,7 @@ import numpy as np
 from numba import prange
 
 from ..config import NOT_A_CONTACT_RTOL
+from .batch import frame_inverse
 from .jit import jit, twins
 from .planar import point_polygon_distance, wedge_edge
 
@@ -102,9 +103,12 @@ def detach_loop(
         qx = contact[i, 0] - ox
         qy = contact[i, 1] - oy
         qz = contact[i, 2] - oz
-        x = Ra[0, 0] * qx + Ra[1, 0] * qy + Ra[2, 0] * qz
-        y = Ra[0, 1] * qx + Ra[1, 1] * qy + Ra[2, 1] * qz
-        z = Ra[0, 2] * qx + Ra[1, 2] * qy + Ra[2, 2] * qz
+        # by Ra's inverse, not its transpose: a float32 rotation is orthonormal only to about 1e-7, and its
+        # transpose put contacts on a's vertices 1e-7 of their distance off, in class 6 ("inside")
+        i00, i01, i02, i10, i11, i12, i20, i21, i22 = frame_inverse(Ra)
+        x = i00 * qx + i01 * qy + i02 * qz
+        y = i10 * qx + i11 * qy + i12 * qz
+        z = i20 * qx + i21 * qy + i22 * qz
         t = tol[min(i, tol.shape[0] - 1)]
         # nearest vertex and edge among the wedge's neighbourhood (O(log n))
         k = wedge_edge(avang, s, m, x, y)
@@ -112,6 +116,7 @@ def detach_loop(
         iv = 0
         best_e = math.inf
         ie = 0
+        fe = 0.5
         for j in range(k - 1, k + 3):
             jj = j % m
             dv = math.hypot(x - avx[s + jj], y - avy[s + jj])
@@ -121,13 +126,23 @@ def detach_loop(
         for j in range(k - 1, k + 2):
             jj = j % m
             j1 = (jj + 1) % m
-            de, _ = seg_dist(x, y, avx[s + jj], avy[s + jj], avx[s + j1], avy[s + j1])
+            de, f = seg_dist(x, y, avx[s + jj], avy[s + jj], avx[s + j1], avy[s + j1])
             if de < best_e:
                 best_e = de
                 ie = jj
-        on_end = abs(z) <= t
+                fe = f
+        # On the end face, or above it: a contact just outside a (collide's lies within its own tolerance
+        # of both bodies, which can exceed t) touches a where it is nearest, not "inside".
+        on_end = z <= t
         near_v = best_v <= t
         near_e = best_e <= t
+        beside = point_polygon_distance(avx, avy, avang, ainv, s, m, x, y)  # < 0: outside the polygon
+        if beside < 0.0 and not (near_v or near_e):  # beside a: its nearest vertex or edge
+            if fe == 0.0 or fe == 1.0:
+                near_v = True
+                iv = ie if fe == 0.0 else (ie + 1) % m
+            else:
+                near_e = True
         # Not a contact of a: above its end face, or beside its polygon (the
         # wedge edge line bounds the distance from below), by more than t plus
         # a margin that holds every contact collide returns (within 2 of its
@@ -137,7 +152,7 @@ def detach_loop(
             + NOT_A_CONTACT_RTOL * arad[ka]
             + 8.0 * EPS64 * (abs(contact[i, 0]) + abs(contact[i, 1]) + abs(contact[i, 2]) + abs(ox) + abs(oy) + abs(oz))
         )
-        if z < -far or point_polygon_distance(avx, avy, avang, ainv, s, m, x, y) < -far:
+        if z < -far or beside < -far:
             cls_out[i] = NOT_ON_A
             dir_out[i, 0] = math.nan
             dir_out[i, 1] = math.nan

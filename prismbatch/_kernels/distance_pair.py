@@ -10,15 +10,16 @@ import math
 import numba
 import numpy as np
 
-from .batch import pair_problem, pair_scalars, unbundle, unpack
+from .batch import unpack
 from .distance import EPA_ROOM, block_of, pair_distance_any_room, signed_status, workspace
 from .jit import per_dtype
+from .one_pair import pair_problem, pair_scalars, unbundle
 
 
 def _distance_pair(bundle, Pa, Ra, Pb, Rb, witness):
     """(problem, value, distance, tol, status, solver, normal, point_a, point_b) of one pair.
 
-    ``bundle``: :func:`~.batch.pair_bundle`. ``problem`` 0: valid inputs; otherwise the first bad
+    ``bundle``: :func:`~.one_pair.pair_bundle`. ``problem`` 0: valid inputs; otherwise the first bad
     one, as ``collide_pair``'s, with ``value`` the offending number. The 3-tuples are NaN unless
     ``witness``.
     """

@@ -76,6 +76,16 @@ def test_regular_arguments():
     assert pb.Prism.regular(np.int8(5), 1.0).n_vertices == 5  # (its memory estimate overflowed int8)
     with pytest.raises(ValueError, match=r"n must be in \[3, 10,000,000\], got 2000000000"):
         pb.Prism.regular(np.int32(2 * 10**9), 1.0)
+    # Polygons whose extent overflows float64: their edges (and the kernels' tables) would be inf, with
+    # overflow warnings; refused by name at construction, not first by collide.
+    huge = [[-1.7e308, 0.0], [1.7e308, 0.0], [0.0, 1.7e308]]
+    with pytest.raises(ValueError, match="prism: its extent overflows float64"):
+        pb.Prism(huge)
+    with pytest.raises(ValueError, match="polygon 1: its extent overflows float64"):
+        pb.PrismSet([[[0, 0], [1, 0], [0, 1]], huge])
+    with pytest.raises(ValueError, match="its extent overflows float64"):
+        pb.Prism.regular(5, 1.7e308)
+    assert np.isfinite(pb.Prism.regular(5, 1e307).radius)
 
 
 def test_ragged_polygon_names_the_argument():

@@ -298,3 +298,117 @@ def test_detach_from_a_distance_uses_where_the_bodies_really_touch():
     assert np.all(np.abs(after.distance) <= 10 * after.tol)
     with pytest.raises(ValueError, match="witness=True"):
         detach(a, distance(a, b, *P), P[0], P[1], P[3], np.ones((400, 3)))
+
+
+def _classes_by_plain_search(xy, pos, rot, points, tol):
+    """The contact class of each point, by a plain search over every vertex and edge of a (the test's reference).
+
+    a's frame by solving with the matrix as given; on the end face or above it (z <= tol); near a vertex or
+    an edge within tol; a point beside the polygon that is near neither takes its nearest vertex or edge;
+    inside otherwise. Returns (classes, margin): margin is how far each point's deciding distances lie from
+    tol, in units of tol (points near a threshold are left out of the comparison).
+    """
+    v = np.asarray(xy, float)
+    u, w = v[1] - v[0], v[2] - v[1]
+    if u[0] * w[1] - u[1] * w[0] < 0:
+        v = v[::-1]
+    e = np.roll(v, -1, axis=0) - v
+    n = np.column_stack([e[:, 1], -e[:, 0]]) / np.hypot(e[:, 0], e[:, 1])[:, None]
+    classes, margins = [], []
+    for p in points:
+        x, y, z = np.linalg.solve(rot, p - pos)
+        q = np.array([x, y])
+        dv = np.hypot(*(q - v).T).min()
+        f = np.clip(((q - v) * e).sum(axis=1) / (e * e).sum(axis=1), 0.0, 1.0)
+        seg = np.hypot(*(q - v - f[:, None] * e).T)
+        k = int(np.argmin(seg))
+        de = seg[k]
+        inside = ((q - v) * n).sum(axis=1).max()  # > 0: outside the polygon
+        on_end, near_v, near_e = z <= tol, dv <= tol, de <= tol
+        if inside > 0 and not (near_v or near_e):
+            near_v, near_e = f[k] in (0.0, 1.0), f[k] not in (0.0, 1.0)
+        c = (1 if near_v else 2 if near_e else 5) if on_end else (3 if near_v else 4 if near_e else 6)
+        classes.append(c)
+        margins.append(min(abs(d - tol) / tol for d in (z, dv, de, abs(inside) + tol)))
+    return np.array(classes), np.array(margins)
+
+
+@pytest.mark.parametrize("rotations", ["float64", "float32", "far"])
+def test_classes_against_a_plain_search_over_every_feature(rotations):
+    """Random convex polygons, points at each kind of feature (on it, just inside, just outside, above the end
+    face, deep inside) against the plain search. ``float32``: float32 rotation matrices, orthonormal only to
+    about 1e-7, which the kernel once inverted by their transpose and put 1,811 of 2,000 vertex contacts in
+    class 6. ``far``: the polygon 1e6 from its own origin, which the default tol once left out of its
+    rounding floor."""
+    rng = np.random.default_rng({"float64": 1, "float32": 2, "far": 3}[rotations])
+    tol = 1e-6
+    checked = 0
+    for trial in range(30):
+        m = int(rng.integers(3, 40))
+        ang = np.sort(rng.uniform(0, 2 * np.pi, m))
+        xy = np.column_stack([np.cos(ang), rng.uniform(0.3, 1.0) * np.sin(ang)])
+        if rotations == "far":
+            xy = xy + rng.uniform(-1e6, 1e6, 2)
+        try:
+            a = pb.Prism(xy)
+        except ValueError:  # a sliver the package refuses
+            continue
+        v = a.xy
+        R = random_rotations(1, rng)[0]
+        pos = rng.uniform(-100, 100, 3)
+        if rotations == "float32":  # (exactly the float32 numbers, read in float64 by the reference)
+            R, pos = R.astype(np.float32).astype(np.float64), pos.astype(np.float32).astype(np.float64)
+        local = []
+        for _ in range(40):
+            kind = rng.integers(5)
+            j = int(rng.integers(len(v)))
+            if kind == 0:  # at a vertex
+                q = v[j]
+            elif kind == 1:  # on an edge
+                q = v[j] + rng.uniform(0.05, 0.95) * (v[(j + 1) % len(v)] - v[j])
+            else:  # the end face's inside
+                q = v.mean(axis=0) + rng.uniform(0.0, 0.98) * (v[j] - v.mean(axis=0))
+            z = {0: 0.0, 1: 0.0, 2: 0.0, 3: rng.uniform(0.01, 0.5), 4: -rng.uniform(0, 3e-5)}[kind]
+            offset = rng.normal(size=3) * rng.choice([0.1 * tol, 10 * tol, 1e-5])
+            local.append(np.array([q[0], q[1], z]) + offset)
+        points = pos + (R @ np.array(local).T).T
+        want, margin = _classes_by_plain_search(v, pos, R, points, tol)
+        rot32 = R.astype(np.float32) if rotations == "float32" else R
+        got = detach(a, points, pos.astype(rot32.dtype), rot32, np.eye(3), np.ones(len(points)), tol=tol)
+        clear = margin > 0.5
+        np.testing.assert_array_equal(got.contact_class[clear], want[clear])
+        checked += int(clear.sum())
+    assert checked >= 600
+
+
+def test_default_tol_covers_a_polygon_far_from_its_origin():
+    """Contacts at the vertices of a square placed 1e8 from a's own origin, turned (their world coordinates
+    rounded, by about 1e-8): the same class (vertex) as with the offset in a's position. The default tol's
+    rounding floor had left the polygon's offset out, and they came back as side faces and "inside"."""
+    R = random_rotations(1, np.random.default_rng(1))[0]
+    sq = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
+    off = np.array([1e8, 1e8])
+    for shape, pos in ((pb.Prism(sq), R[:, :2] @ off), (pb.Prism(sq + off), np.zeros(3))):
+        xy = sq if pos.any() else sq + off
+        world = pos + np.c_[xy, np.zeros(4)] @ R.T
+        r = detach(shape, world, pos, R, R, np.ones(4))
+        assert r.contact_class.tolist() == [1, 1, 1, 1]
+
+
+def test_a_point_just_outside_a_touches_it_where_it_is_nearest():
+    """Within the refusal margin but beyond tol outside a (collide's contact lies within collide's own
+    tolerance, which can exceed detach's): classified by a's nearest feature, never "inside" (class 6)."""
+    for point, cls in (([0.2, 0.1, 1e-6], 5), ([1.0 + 1e-6, 0.3, -0.5], 4), ([1 + 1e-6, 1 + 1e-6, 1e-6], 1)):
+        r = detach(A, [point], np.zeros(3), DOWN, np.eye(3), [1.0])
+        assert r.contact_class[0] == cls and r.depth[0] == 0.0, point
+
+
+def test_state_error_norms_and_the_batch_they_belong_to():
+    """(N,) state errors with one contact and N poses are N norms (the batch is N pairs); norms far from 1 are
+    taken without squaring them (1e-200 underflowed to a force of 0, 1e200 overflowed and was refused)."""
+    r = detach(A, [[0.2, 0.1, 0.0]], np.zeros((3, 3)), DOWN, np.eye(3), [1.0, 2.0, 3.0])
+    np.testing.assert_allclose(np.linalg.norm(r.force, axis=1), [10.0, 20.0, 30.0])
+    r = detach(A, [[0.2, 0.1, 0.0]] * 2, np.zeros(3), DOWN, np.eye(3), [[1e-200, 0.0], [3e-170, 4e-170]], eps=1e200)
+    np.testing.assert_allclose(np.linalg.norm(r.force, axis=1), [1.0, 5e30], rtol=1e-14)
+    r = detach(A, [[0.2, 0.1, 0.0]], np.zeros(3), DOWN, np.eye(3), [[3e200, 4e200]], eps=1e-100)
+    assert np.linalg.norm(r.force[0]) == pytest.approx(5e100, rel=1e-14)

@@ -282,7 +282,7 @@ def test_the_pair_bundle_holds_both_prisms_and_the_scalars():
     import numpy as np
 
     import prismbatch as pb
-    from prismbatch._kernels.batch import pair_bundle, unbundle
+    from prismbatch._kernels.one_pair import pair_bundle, unbundle
 
     for dt in (np.float64, np.float32):
         for na, nb in ((5, 3), (4, 40), (3, 7)):  # odd and even counts of float32 words
