@@ -113,12 +113,14 @@ def halfplanes(xy):
     """Unit outward edge normals ``n`` (m, 2) and offsets ``h`` (m,) of a convex polygon.
 
     The polygon is ``{q : n_i . q <= h_i for all i}``. Edges shorter than
-    1e-14 of the polygon's scale (repeated vertices) are skipped.
+    1e-14 of the polygon's extent (repeated vertices) are skipped: its extent,
+    not its distance from the origin, which dropped real edges of small
+    polygons far from it (a 0.006 chamfer at 1e12).
     """
     p = ccw(xy)
     e = np.roll(p, -1, axis=0) - p
     length = np.hypot(e[:, 0], e[:, 1])
-    ok = length > 1e-14 * max(float(np.max(np.abs(p))), 1e-300)
+    ok = length > 1e-14 * max(float(np.max(np.ptp(p, axis=0))), 1e-300)
     n = np.stack([e[ok, 1], -e[ok, 0]], axis=1) / length[ok, None]
     return n, np.einsum("ij,ij->i", n, p[ok])
 

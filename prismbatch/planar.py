@@ -18,22 +18,29 @@ import math
 import numpy as np
 
 from ._kernels.planar import edge_search_tables, gjk_generators, point_polygon_distance
-from .shapes import Prism, PrismSet
+from .checks import as_real_array, real_scalar
+from .config import MAX_MAGNITUDE
+from .shapes import Prism, as_prism_set
 
 __all__ = ["point_polygon", "segment_polygon", "halfline_polygon", "strip_polygon", "polygon_polygon"]
 
 
 def _poly_arrays(poly, name="poly"):
+    """The polygon as a Prism and its one-polygon PrismSet, in the range the kernels support (as collide's)."""
     prism = poly if isinstance(poly, Prism) else Prism(poly, name=name)
-    s = PrismSet([prism])
-    return prism, s
+    return prism, as_prism_set(prism, name)[0]
 
 
 def _vec2(x, name):
-    a = np.asarray(x, dtype=np.float64).reshape(-1)
-    if a.shape != (2,) or not np.all(np.isfinite(a)):
-        raise ValueError(f"{name} must be a finite 2-vector, got {x!r}")
+    """A point or direction: two real numbers of magnitude at most MAX_MAGNITUDE (as collide's positions)."""
+    a = as_real_array(x, name).astype(np.float64).reshape(-1)
+    if a.shape != (2,) or not np.all(np.abs(a) <= MAX_MAGNITUDE):
+        raise ValueError(f"{name} must be 2 finite numbers of magnitude <= {MAX_MAGNITUDE:g}, got {x!r}")
     return a
+
+
+def _tol(tol):
+    return real_scalar(tol, "tol", 0.0, MAX_MAGNITUDE)
 
 
 def _run(prism, pset, pts, w, tol, poly_b=None):
@@ -58,10 +65,11 @@ def _run(prism, pset, pts, w, tol, poly_b=None):
         reach_pts = g
     wx, wy, T = 0.0, 0.0, 0.0
     if w is not None:
-        wn = math.hypot(w[0], w[1])
-        if wn == 0.0:
+        big = max(abs(w[0]), abs(w[1]))
+        if big == 0.0:
             raise ValueError("direction d must be non-zero")
-        wx, wy = w[0] / wn, w[1] / wn
+        wn = math.hypot(w[0] / big, w[1] / big)  # (scaled first: a subnormal or huge d keeps its direction)
+        wx, wy = w[0] / big / wn, w[1] / big / wn
         # Beyond this length the shape is farther than the polygon's reach.
         T = float(np.max(np.hypot(reach_pts[:, 0], reach_pts[:, 1]))) + pset.radius[0] + 2 * tol + 1.0
     hit, _, ax, ay, u, v, t = gjk_generators(
@@ -94,6 +102,7 @@ def point_polygon(poly, p, tol=0.0):
     the Euclidean distance). ``hit`` is ``signed_distance >= -tol``.
     """
     prism, s = _poly_arrays(poly)
+    tol = _tol(tol)
     p = _vec2(p, "p") - prism.centre
     d = point_polygon_distance(s.vx, s.vy, s.vertex_angle, s.inv_edge_len, 0, len(s.vx), p[0], p[1])
     return bool(d >= -tol), float(d)
@@ -105,13 +114,13 @@ def segment_polygon(poly, p1, p2, tol=0.0):
     pts = np.array([_vec2(p1, "p1"), _vec2(p2, "p2")])
     if np.array_equal(pts[0], pts[1]):
         pts = pts[:1]
-    return _run(prism, s, pts, None, tol)
+    return _run(prism, s, pts, None, _tol(tol))
 
 
 def halfline_polygon(poly, p, d, tol=0.0):
     """Half-line {p + t d : t >= 0} vs convex polygon: ``(hit, contact)``."""
     prism, s = _poly_arrays(poly)
-    return _run(prism, s, _vec2(p, "p")[None, :], _vec2(d, "d"), tol)
+    return _run(prism, s, _vec2(p, "p")[None, :], _vec2(d, "d"), _tol(tol))
 
 
 def strip_polygon(poly, p1, p2, d, tol=0.0):
@@ -120,11 +129,11 @@ def strip_polygon(poly, p1, p2, d, tol=0.0):
     pts = np.array([_vec2(p1, "p1"), _vec2(p2, "p2")])
     if np.array_equal(pts[0], pts[1]):
         pts = pts[:1]
-    return _run(prism, s, pts, _vec2(d, "d"), tol)
+    return _run(prism, s, pts, _vec2(d, "d"), _tol(tol))
 
 
 def polygon_polygon(poly, other, tol=0.0):
     """Convex polygon vs convex polygon (both in the same plane frame)."""
     prism, s = _poly_arrays(poly)
     _, so = _poly_arrays(other, name="other")
-    return _run(prism, s, None, None, tol, poly_b=so)
+    return _run(prism, s, None, None, _tol(tol), poly_b=so)

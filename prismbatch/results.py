@@ -34,7 +34,14 @@ def pair_index(k, n):
     ------
     IndexError
         An integer out of range.
+    TypeError
+        A bool or None (``True`` would read as pair 1, ``None`` add an axis to every field), or an index
+        of more than one dimension.
     """
+    if k is None or isinstance(k, (bool, np.bool_)):
+        raise TypeError(f"pairs are selected by an integer, a slice, an index array or a boolean mask, not {k!r}")
+    if isinstance(k, tuple):
+        raise TypeError(f"pairs are selected along one axis; got the index {k!r}")
     if isinstance(k, (int, np.integer)):
         if not -n <= k < n:
             raise IndexError(f"pair {k} is out of range for {n} pairs")

@@ -164,6 +164,9 @@ def test_result_object():
     assert len(r[r.distance > 0]) == 2
     with pytest.raises(IndexError):
         r[3]
+    for k in (True, np.True_, None, (0, 1)):  # (True read as pair 1, None added an axis to every field)
+        with pytest.raises(TypeError, match="pairs are selected"):
+            r[k]
     w = distance(a, a, [0, 0, 0], R_DOWN, [[0, 0, 0.5]], np.eye(3), witness=True)
     cols = w.columns()
     assert set(cols) >= {"distance", "status", "tol", "solver", "normal_z", "point_a_x", "point_b_y"}

@@ -126,3 +126,17 @@ def test_convex_hull_of_nearly_collinear_points_decides_turns_exactly():
     pts = np.vstack([pts, [[0.5, -1.0]]])
     assert _is_strict_hull_of(convex_hull(pts), pts)
     assert len(convex_hull([[0.0, 0.0], [1.0, 1.0]])) == 2  # fewer than 3 points: as given
+
+
+def test_halfplanes_keep_the_edges_of_a_small_polygon_far_from_the_origin():
+    """Edges are skipped relative to the polygon's extent, not to its distance from the origin: a 0.006
+    chamfer at 1e12 was dropped, and a point 1.6e-3 outside it was called inside."""
+    from prismbatch.geometry import halfplanes, point_in_prism_residual
+
+    off = 1e12
+    cham = np.array([[0.005, 0], [0.05, 0], [0.05, 0.05], [0, 0.05], [0, 0.003]]) + off
+    assert len(halfplanes(cham)[0]) == 5
+    outside = np.array([off + 0.001, off + 0.0005, 1.0])  # below the chamfer's line
+    assert point_in_prism_residual(cham, np.zeros(3), np.eye(3), outside) > 1e-3
+    square = np.array([[0, 0], [1, 0], [1, 1], [0, 1]]) * 1e-3 + off
+    assert point_in_prism_residual(square, np.zeros(3), np.eye(3), [off, off, 1.0]) <= 1e-3 * 1e-3

@@ -562,3 +562,36 @@ def test_gjk_without_witness_decides_as_with_it():
         else:
             misses += 1
     assert hits >= 100 and misses >= 100, (hits, misses)
+
+
+def test_planar_tests_check_their_arguments_as_collide_does():
+    """tol is a real number in [0, 1e100] (a negative one made segment_polygon hit a segment 0.1 away, NaN made
+    point_polygon miss the square's centre), points and directions are real numbers of magnitude <= 1e100
+    (beyond about 1e154 their squares overflowed, and rays through the square missed it) and polygons lie in
+    collide's supported range; a direction is scaled before it is normalised."""
+    from prismbatch import planar as P
+
+    sq = [[0, 0], [1, 0], [1, 1], [0, 1]]
+    for tol, exc in (
+        (-1.0, ValueError),
+        (np.nan, ValueError),
+        (np.inf, ValueError),
+        (True, TypeError),
+        ("0.1", TypeError),
+    ):
+        with pytest.raises(exc, match="tol"):
+            P.segment_polygon(sq, [2.0, 0.0], [2.0, 1.0], tol=tol)
+        with pytest.raises(exc, match="tol"):
+            P.point_polygon(sq, [0.5, 0.5], tol=tol)
+    with pytest.raises(ValueError, match=r"p must be 2 finite numbers of magnitude <= 1e\+100"):
+        P.halfline_polygon(sq, [1e200, 0.5], [-1, 0])
+    with pytest.raises(TypeError, match="p must have a real numeric dtype"):
+        P.point_polygon(sq, ["0.5", "0.5"])
+    with pytest.raises(ValueError, match="outside the supported range"):
+        P.point_polygon(np.array(sq, float) * 1e-170, [0.0, 0.0])
+    assert P.halfline_polygon(sq, [1e99, 0.5], [-1, 0])[0] and P.segment_polygon(sq, [1e99, 0.5], [-1e99, 0.5])[0]
+    assert not P.halfline_polygon(sq, [1e99, 1.5], [-1, 0])[0]
+    want = P.halfline_polygon(sq, [2, -0.5], [-1, 1])
+    for d in ([-1.5e99, 1.5e99], [-1e-320, 1e-320]):
+        got = P.halfline_polygon(sq, [2, -0.5], d)
+        assert got[0] and np.allclose(got[1], want[1], rtol=0, atol=1e-12)
