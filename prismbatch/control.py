@@ -12,6 +12,7 @@ implicit and the direction chosen for each of the six rows are in
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -165,6 +166,11 @@ def detach(shape_a, contact, pos_a, rot_a, rot_b, state_error, *, eps=10.0, tol=
     measured = _from_distance(contact)
     if measured is not None:
         contact = measured.contact
+    elif dataclasses.is_dataclass(contact):  # a CollisionResult, say: its contact points are a field
+        raise TypeError(
+            f"contact must be points (N, 3) or a DistanceResult, got a {type(contact).__name__}; "
+            "pass collide(..., contact=True).contact"
+        )
     c = as_real_array(contact, "contact").astype(np.float64)
     if c.ndim == 1:
         c = c[None, :]
@@ -218,8 +224,9 @@ def detach(shape_a, contact, pos_a, rot_a, rot_b, state_error, *, eps=10.0, tol=
     )
     i = _first_bad(cls >= 0)
     if i is not None:
+        where = f"contact[{i}]" if len(c) == n else f"contact (of pair {i})"
         raise ValueError(
-            f"contact[{i}] = {cc[i].tolist()} lies outside a by more than tol + "
+            f"{where} = {cc[i].tolist()} lies outside a by more than tol + "
             f"{NOT_A_CONTACT_RTOL:g} x a's radius: not a contact point of a (pass "
             f"collide(..., contact=True).contact)"
         )

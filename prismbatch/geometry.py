@@ -98,6 +98,12 @@ def rotation_with_axis(d, spin=0.0, *, exact_axis=False):
     single = d.ndim == 1
     d = np.atleast_2d(d)
     if not exact_axis:
+        big = np.abs(d).max(axis=1, keepdims=True)
+        bad = ~(np.isfinite(big[:, 0]) & (big[:, 0] > 0))
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise ValueError(f"rotation_with_axis: axis {d[i].tolist()} is not a direction (zero or not finite)")
+        d = d / big  # (scaled first: the norm of 1e200 or 1e-200 components overflows or underflows)
         d = d / np.linalg.norm(d, axis=1, keepdims=True)
     ref = np.where(np.abs(d[:, :1]) < 0.9, np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]]))
     x = ref - np.sum(ref * d, axis=1, keepdims=True) * d

@@ -122,7 +122,8 @@ def centres(z, miss, active):
 
 
 def wilson(hits, n, z):
-    """Wilson score interval ``(low, high)`` of ``hits`` successes in ``n`` trials (arrays; NaN where ``n == 0``)."""
+    """Wilson score interval ``(low, high)`` of ``hits`` successes in ``n`` trials (arrays; ``(0, 1)`` where
+    ``n == 0``: no trials say nothing)."""
     hits, n = np.asarray(hits, dtype=np.float64), np.asarray(n, dtype=np.float64)
     with np.errstate(invalid="ignore", divide="ignore"):
         p = hits / n

@@ -412,3 +412,12 @@ def test_state_error_norms_and_the_batch_they_belong_to():
     np.testing.assert_allclose(np.linalg.norm(r.force, axis=1), [1.0, 5e30], rtol=1e-14)
     r = detach(A, [[0.2, 0.1, 0.0]], np.zeros(3), DOWN, np.eye(3), [[3e200, 4e200]], eps=1e-100)
     assert np.linalg.norm(r.force[0]) == pytest.approx(5e100, rel=1e-14)
+
+
+def test_a_collision_result_or_a_shared_contact_is_named_plainly():
+    r = pb.collide(A, B, np.zeros(3), DOWN, [0.0, 0.0, -0.1], np.eye(3), contact=True)
+    with pytest.raises(TypeError, match=r"got a CollisionResult; pass collide\(\.\.\., contact=True\)\.contact"):
+        detach(A, r, np.zeros(3), DOWN, np.eye(3), [1.0])
+    # one contact for three poses, not on a at the third: the pair is named, not a row the contact lacks
+    with pytest.raises(ValueError, match=r"^contact \(of pair 2\) = "):
+        detach(A, [[0.2, 0.1, 0.0]], [[0, 0, 0], [0, 0, 0], [50.0, 0, 0]], DOWN, np.eye(3), np.ones(3))

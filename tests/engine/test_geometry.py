@@ -140,3 +140,18 @@ def test_halfplanes_keep_the_edges_of_a_small_polygon_far_from_the_origin():
     assert point_in_prism_residual(cham, np.zeros(3), np.eye(3), outside) > 1e-3
     square = np.array([[0, 0], [1, 0], [1, 1], [0, 1]]) * 1e-3 + off
     assert point_in_prism_residual(square, np.zeros(3), np.eye(3), [off, off, 1.0]) <= 1e-3 * 1e-3
+
+
+def test_rotation_with_axis_takes_any_finite_nonzero_axis():
+    """Axes of 1e200 or 1e-200 components give the same rotation as unit ones (their norm overflowed to a
+    singular matrix, or underflowed to NaN); zero or non-finite axes are refused by name."""
+    import pytest
+
+    from prismbatch.geometry import rotation_with_axis
+
+    want = rotation_with_axis([1.0, 1.0, 0.0], 0.3)
+    for s in (1e200, 1e-200):
+        np.testing.assert_allclose(rotation_with_axis([s, s, 0.0], 0.3), want, rtol=0, atol=1e-15)
+    for d in ([0.0, 0.0, 0.0], [np.inf, 0.0, 0.0], [[0.0, 0.0, 1.0], [np.nan, 0.0, 0.0]]):
+        with pytest.raises(ValueError, match="is not a direction"):
+            rotation_with_axis(d)
