@@ -9,6 +9,11 @@ The point test is the paper's polar wedge search (binary search, O(log n)).
 The other four run the same 2-D GJK the prism kernels use, over O(log n)
 support queries, instead of the paper's vertex-set scans and edge walk: one
 exact piece of code for every shape (see :mod:`prismbatch._kernels.planar`).
+
+Arguments are checked as :func:`prismbatch.collide` checks its own: ``tol`` a real number in
+[0, 1e100], points and directions two real numbers of magnitude at most 1e100, polygons in the
+supported range (:data:`~prismbatch.config.SUPPORTED_RANGE`); TypeError or ValueError naming the
+argument otherwise.
 """
 
 from __future__ import annotations
