@@ -58,13 +58,12 @@ import prismbatch as pb
 from prismbatch._kernels.batch import (
     centres_and_tolerance,
     centres_world,
-    collide_pair,
     collide_serial,
     frame_inverse,
-    pair_bundle,
     relative_pose,
 )
 from prismbatch._kernels.jit import jit
+from prismbatch._kernels.one_pair import collide_pair, pair_bundle
 from prismbatch._kernels.planar import extreme_vertex, point_polygon_distance
 from prismbatch._kernels.projection import surely_above, surely_above_by_radius
 from prismbatch.config import SUPPORTED_RANGE

@@ -19,6 +19,7 @@ def compile_times():
     """First call of each prismbatch path on a tiny scene (compile or cache load)."""
     # The kernels module tells whether a kernel was compiled in this process before the first call.
     from ..._kernels import batch as kernels
+    from ..._kernels import one_pair
 
     a, b = Prism.regular(5, RADIUS_A), Prism.regular(6, RADIUS_B)
     col = Collider(a, b)
@@ -27,7 +28,7 @@ def compile_times():
     pb_ = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, -1.0], [5.0, 0.0, 0.0], [1.0, 1.0, -0.5]])
     rb = np.broadcast_to(np.eye(3), (4, 3, 3)).copy()
     dispatchers = {
-        "collide_pair": kernels.collide_pair[np.dtype(np.float64)],
+        "collide_pair": one_pair.collide_pair[np.dtype(np.float64)],
         "collide_serial": kernels.collide_serial,
         "collide_parallel": kernels.collide_parallel,
     }
