@@ -138,9 +138,11 @@ def detach(shape_a, contact, pos_a, rot_a, rot_b, state_error, *, eps=10.0, tol=
         (:func:`prismbatch.geometry.pair_scale_tolerance`) or a physical
         tolerance for simulated contacts. A contact just outside a (by less
         than the refusal margin) takes the class of a's nearest feature.
-        The nearest vertex and edge are searched around the contact's polar
-        wedge (its four vertices and three edges): a tol much larger than
-        a's edges there can miss a nearer one.
+        The nearest vertex and edge are searched from the contact's polar
+        wedge outwards while a's edges come nearer or stay within tol (a
+        tol larger than the edges there, on a finely divided flat side,
+        walks over several). A polygon thinner than 2 tol is near two
+        sides at once; the search finds the one on the wedge's side.
     parallel : bool or None, optional
         Spread pairs over Numba's threads; None (default) does so for large
         batches only (thread start-up costs more than small batches).

@@ -110,7 +110,7 @@ def detach_loop(
         y = i10 * qx + i11 * qy + i12 * qz
         z = i20 * qx + i21 * qy + i22 * qz
         t = tol[min(i, tol.shape[0] - 1)]
-        # nearest vertex and edge among the wedge's neighbourhood (O(log n))
+        # nearest vertex and edge: the wedge's neighbourhood (O(log n)), then the walks below
         k = wedge_edge(avang, s, m, x, y)
         best_v = math.inf
         iv = 0
@@ -123,14 +123,43 @@ def detach_loop(
             if dv < best_v:
                 best_v = dv
                 iv = jj
+        ends = (0.0, 0.0)  # distances of edges k - 1 and k + 1, where the walks below start
         for j in range(k - 1, k + 2):
             jj = j % m
             j1 = (jj + 1) % m
             de, f = seg_dist(x, y, avx[s + jj], avy[s + jj], avx[s + j1], avy[s + j1])
+            if j == k - 1:
+                ends = (de, ends[1])
+            elif j == k + 1:
+                ends = (ends[0], de)
             if de < best_e:
                 best_e = de
                 ie = jj
                 fe = f
+        # On past the neighbourhood, each way, while the edges come nearer or stay within t: where t
+        # exceeds the edges (a physical tol on a finely divided flat side) the wedge's edge need not be the
+        # nearest. Usually one more edge each way.
+        for side in range(2):
+            step = -1 if side == 0 else 1
+            prev = ends[side]
+            j = k - 2 if side == 0 else k + 2
+            for _ in range(m - 3):
+                jj = j % m
+                j1 = (jj + 1) % m
+                de, f = seg_dist(x, y, avx[s + jj], avy[s + jj], avx[s + j1], avy[s + j1])
+                if de < best_e:
+                    best_e = de
+                    ie = jj
+                    fe = f
+                jv = jj if side == 0 else j1  # the vertex this edge adds
+                dv = math.hypot(x - avx[s + jv], y - avy[s + jv])
+                if dv < best_v:
+                    best_v = dv
+                    iv = jv
+                if de > t and de >= prev:
+                    break
+                prev = de
+                j += step
         # On the end face, or above it: a contact just outside a (collide's lies within its own tolerance
         # of both bodies, which can exceed t) touches a where it is nearest, not "inside".
         on_end = z <= t

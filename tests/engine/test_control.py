@@ -329,24 +329,27 @@ def _classes_by_plain_search(xy, pos, rot, points, tol):
             near_v, near_e = f[k] in (0.0, 1.0), f[k] not in (0.0, 1.0)
         c = (1 if near_v else 2 if near_e else 5) if on_end else (3 if near_v else 4 if near_e else 6)
         classes.append(c)
-        margins.append(min(abs(d - tol) / tol for d in (z, dv, de, abs(inside) + tol)))
+        # (and the side of the polygon's outline, exact by its sign, away from rounding)
+        margins.append(min(abs(d - tol) / tol for d in (z, dv, de)) if abs(inside) > 1e-3 * tol else 0.0)
     return np.array(classes), np.array(margins)
 
 
-@pytest.mark.parametrize("rotations", ["float64", "float32", "far"])
+@pytest.mark.parametrize("rotations", ["float64", "float32", "far", "thin"])
 def test_classes_against_a_plain_search_over_every_feature(rotations):
     """Random convex polygons, points at each kind of feature (on it, just inside, just outside, above the end
     face, deep inside) against the plain search. ``float32``: float32 rotation matrices, orthonormal only to
     about 1e-7, which the kernel once inverted by their transpose and put 1,811 of 2,000 vertex contacts in
     class 6. ``far``: the polygon 1e6 from its own origin, which the default tol once left out of its
-    rounding floor."""
-    rng = np.random.default_rng({"float64": 1, "float32": 2, "far": 3}[rotations])
-    tol = 1e-6
+    rounding floor. ``thin``: flat 300-gons with a tol larger than their edges, where the nearest edge can
+    lie beyond the contact's polar wedge's neighbours (309 of 7,119 points were misclassified)."""
+    rng = np.random.default_rng({"float64": 1, "float32": 2, "far": 3, "thin": 4}[rotations])
+    tol = 0.02 if rotations == "thin" else 1e-6
     checked = 0
     for trial in range(30):
-        m = int(rng.integers(3, 40))
+        m = 300 if rotations == "thin" else int(rng.integers(3, 40))
         ang = np.sort(rng.uniform(0, 2 * np.pi, m))
-        xy = np.column_stack([np.cos(ang), rng.uniform(0.3, 1.0) * np.sin(ang)])
+        flat = rng.uniform(0.04, 0.1) if rotations == "thin" else rng.uniform(0.3, 1.0)
+        xy = np.column_stack([np.cos(ang), flat * np.sin(ang)])
         if rotations == "far":
             xy = xy + rng.uniform(-1e6, 1e6, 2)
         try:
@@ -360,16 +363,30 @@ def test_classes_against_a_plain_search_over_every_feature(rotations):
             R, pos = R.astype(np.float32).astype(np.float64), pos.astype(np.float32).astype(np.float64)
         local = []
         for _ in range(40):
-            kind = rng.integers(5)
+            kind = rng.integers(6)
             j = int(rng.integers(len(v)))
+            e = v[(j + 1) % len(v)] - v[j]
             if kind == 0:  # at a vertex
                 q = v[j]
-            elif kind == 1:  # on an edge
-                q = v[j] + rng.uniform(0.05, 0.95) * (v[(j + 1) % len(v)] - v[j])
+            elif kind in (1, 5):  # on an edge; or (5) inside, within tol of it, deep in the body
+                q = v[j] + rng.uniform(0.05, 0.95) * e
+                if kind == 5:
+                    q = q + np.array([-e[1], e[0]]) / np.hypot(*e) * rng.uniform(0.1, 0.9) * tol
             else:  # the end face's inside
                 q = v.mean(axis=0) + rng.uniform(0.0, 0.98) * (v[j] - v.mean(axis=0))
-            z = {0: 0.0, 1: 0.0, 2: 0.0, 3: rng.uniform(0.01, 0.5), 4: -rng.uniform(0, 3e-5)}[kind]
-            offset = rng.normal(size=3) * rng.choice([0.1 * tol, 10 * tol, 1e-5])
+            z = {
+                0: 0.0,
+                1: 0.0,
+                2: 0.0,
+                3: rng.uniform(0.01, 0.5),
+                4: -rng.uniform(0, 3e-5),
+                5: rng.uniform(0.05, 0.5),
+            }[kind]
+            if rotations == "thin":  # within tol of the point built: outside a by less than the refusal margin
+                u = rng.normal(size=3)
+                offset = u / np.linalg.norm(u) * rng.choice([0.1, 0.5, 0.9]) * tol
+            else:
+                offset = rng.normal(size=3) * rng.choice([0.1 * tol, 10 * tol, 1e-5])
             local.append(np.array([q[0], q[1], z]) + offset)
         points = pos + (R @ np.array(local).T).T
         want, margin = _classes_by_plain_search(v, pos, R, points, tol)
@@ -378,7 +395,7 @@ def test_classes_against_a_plain_search_over_every_feature(rotations):
         clear = margin > 0.5
         np.testing.assert_array_equal(got.contact_class[clear], want[clear])
         checked += int(clear.sum())
-    assert checked >= 600
+    assert checked >= 500
 
 
 def test_default_tol_covers_a_polygon_far_from_its_origin():
