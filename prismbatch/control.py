@@ -141,8 +141,9 @@ def detach(shape_a, contact, pos_a, rot_a, rot_b, state_error, *, eps=10.0, tol=
         The nearest vertex and edge are searched from the contact's polar
         wedge outwards while a's edges come nearer or stay within tol (a
         tol larger than the edges there, on a finely divided flat side,
-        walks over several). A polygon thinner than 2 tol is near two
-        sides at once; the search finds the one on the wedge's side.
+        walks over several). On a polygon thinner than 2 tol a contact
+        can be within tol of both sides; it is then classed by the
+        features the search reaches.
     parallel : bool or None, optional
         Spread pairs over Numba's threads; None (default) does so for large
         batches only (thread start-up costs more than small batches).
