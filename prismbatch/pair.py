@@ -50,7 +50,10 @@ class OnePairQueries:
         Returns
         -------
         PairResult
-            ``(hit, case, contact)``.
+            ``(hit, case, contact)``; ``contact`` is a float64 (3,) array
+            whatever the Collider's dtype, as the kernel forms it (a float32
+            Collider's batch calls store contacts in float32: this point,
+            rounded).
 
         Raises
         ------
