@@ -21,6 +21,7 @@ from ._kernels.batch import use_parallel
 from ._kernels.detach import detach_parallel, detach_serial
 from .checks import as_real_array, check_flag, indexed_name, real_scalar
 from .config import NOT_A_CONTACT_RTOL
+from .geometry import row_norms
 from .poses import as_pose, as_rotations, common_batch_size
 from .shapes import as_prism_set
 
@@ -56,14 +57,11 @@ def _check_tol(tol, n):
 
 
 def _norms(err):
-    """Euclidean norms of (N, k) rows, |x| of (N,) norms, or a scalar's as (1,): scaled, so that norms
-    of 1e-200 or 1e200 neither underflow nor overflow in their squares."""
+    """Euclidean norms of (N, k) rows (:func:`~prismbatch.geometry.row_norms`: norms of 1e-200 or 1e200
+    neither underflow nor overflow in their squares), |x| of (N,) norms, or a scalar's as (1,)."""
     if err.ndim <= 1:
         return np.abs(err).reshape(-1)
-    flat = err.reshape(err.shape[0], int(np.prod(err.shape[1:])))
-    big = np.abs(flat).max(axis=1, initial=0.0)
-    unit = np.where(big > 0.0, big, 1.0)
-    return big * np.sqrt(np.square(flat / unit[:, None]).sum(axis=1))
+    return row_norms(err.reshape(err.shape[0], int(np.prod(err.shape[1:]))))
 
 
 def _force(eps, errn, direction):

@@ -19,6 +19,7 @@ __all__ = [
     "max_radius",
     "centroid_radius",
     "rotation_with_axis",
+    "row_norms",
     "convex_hull",
     "halfplanes",
     "point_in_prism_residual",
@@ -98,13 +99,12 @@ def rotation_with_axis(d, spin=0.0, *, exact_axis=False):
     single = d.ndim == 1
     d = np.atleast_2d(d)
     if not exact_axis:
-        big = np.abs(d).max(axis=1, keepdims=True)
-        bad = ~(np.isfinite(big[:, 0]) & (big[:, 0] > 0))
+        norm = row_norms(d)
+        bad = ~(np.isfinite(norm) & (norm > 0))
         if bad.any():
             i = int(np.argmax(bad))
             raise ValueError(f"rotation_with_axis: axis {d[i].tolist()} is not a direction (zero or not finite)")
-        d = d / big  # (scaled first: the norm of 1e200 or 1e-200 components overflows or underflows)
-        d = d / np.linalg.norm(d, axis=1, keepdims=True)
+        d = d / norm[:, None]
     ref = np.where(np.abs(d[:, :1]) < 0.9, np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]]))
     x = ref - np.sum(ref * d, axis=1, keepdims=True) * d
     x /= np.linalg.norm(x, axis=1, keepdims=True)
@@ -113,6 +113,20 @@ def rotation_with_axis(d, spin=0.0, *, exact_axis=False):
     c, s = np.cos(spin)[:, None], np.sin(spin)[:, None]
     R = np.stack([c * x + s * y, -s * x + c * y, d], axis=2)
     return R[0] if single else R
+
+
+def row_norms(x):
+    """Euclidean norms of the rows of ``x`` (k, m), with no overflow or underflow in their squares.
+
+    Each row is scaled by the power of two of its largest component first: exact, so rows whose
+    squares are representable get the plain formula's bits, and rows of 1e200 or 1e-200 their norm
+    (inf only where the norm itself is beyond float64).
+    """
+    x = np.asarray(x, dtype=float)
+    big = np.abs(x).max(axis=1, initial=0.0)
+    e = np.frexp(np.where(np.isfinite(big) & (big > 0.0), big, 1.0))[1]
+    with np.errstate(over="ignore"):
+        return np.ldexp(np.sqrt(np.square(np.ldexp(x, -e[:, None])).sum(axis=1)), e)
 
 
 def halfplanes(xy):

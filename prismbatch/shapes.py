@@ -383,8 +383,9 @@ def _build_groups(polygons):
         if len(ok):
             ccw = checks.ccw[ok]
             centres = _centroids(ccw)
-            radii = _radii(ccw, centres, lambda j, ks=np.asarray(ks)[ok]: f"polygon {ks[j]}")
-            parts.setdefault(ccw.shape[1], []).append((np.asarray(ks)[ok], ccw, centres, radii))
+            kept = np.asarray(ks)[ok]
+            radii = _radii(ccw, centres, lambda j: f"polygon {kept[j]}")
+            parts.setdefault(ccw.shape[1], []).append((kept, ccw, centres, radii))
         for j in np.flatnonzero(~checks.ok):
             errors[ks[j]] = (checks, j, stack[j])
     if errors:

@@ -155,3 +155,16 @@ def test_rotation_with_axis_takes_any_finite_nonzero_axis():
     for d in ([0.0, 0.0, 0.0], [np.inf, 0.0, 0.0], [[0.0, 0.0, 1.0], [np.nan, 0.0, 0.0]]):
         with pytest.raises(ValueError, match="is not a direction"):
             rotation_with_axis(d)
+
+
+def test_row_norms_match_the_plain_formula_and_reach_the_ends_of_the_range():
+    """Bit for bit the plain sqrt of the sum of squares where those squares are representable (the rows are
+    scaled by a power of two, exactly); hypot's answer where they overflow or underflow."""
+    from prismbatch.geometry import row_norms
+
+    rng = np.random.default_rng(5)
+    x = rng.normal(size=(2000, 3)) * 10.0 ** rng.uniform(-100, 100, (2000, 1))
+    np.testing.assert_array_equal(row_norms(x), np.sqrt(np.square(x).sum(axis=1)))
+    far = np.array([[3e200, 4e200], [3e-200, 4e-200], [0.0, 0.0], [1e308, 1e307]])
+    np.testing.assert_allclose(row_norms(far), np.hypot(far[:, 0], far[:, 1]), rtol=1e-15)
+    assert row_norms([[1.7e308, 1.7e308]])[0] == np.inf  # the norm itself is beyond float64
